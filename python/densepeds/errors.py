@@ -1,0 +1,21 @@
+"""Exceptions for user-facing mistakes. The CLI prints their message on one line and exits 2."""
+
+
+class DensePedsError(Exception):
+    """Base class: a problem with the user's input, options or models (not a bug)."""
+
+
+class InputError(DensePedsError):
+    """Unreadable or malformed input: missing file, corrupt video, bad det file, bad frame range."""
+
+
+class DetFileError(InputError):
+    """A MOTChallenge det/gt/tracks text file that cannot be parsed."""
+
+
+class ModelError(DensePedsError):
+    """A model file that is missing or does not have the expected input/output contract."""
+
+
+class ParameterError(DensePedsError, ValueError):
+    """An option value outside its allowed range or set."""

@@ -1,0 +1,24 @@
+"""Shared fixtures: the real data in ../shared, skipped with a clear reason where it is absent."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+SHARED = Path(os.environ.get("DENSEPEDS_SHARED", REPO.parent / "shared"))
+
+
+def shared_path(*parts: str) -> Path:
+    """A path under ../shared, or skip the test saying what is missing."""
+    p = SHARED.joinpath(*parts)
+    if not p.exists():
+        pytest.skip(f"needs {p} (the shared data and models beside the repo; set DENSEPEDS_SHARED)")
+    return p
+
+
+@pytest.fixture
+def shared() -> Path:
+    return shared_path()
