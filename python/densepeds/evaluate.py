@@ -1,0 +1,294 @@
+"""MOTChallenge evaluation (HOTA, CLEAR MOT, identity metrics) through the ``trackeval`` package.
+
+trackeval expects its own folder layout; :func:`evaluate` builds it in a temporary directory
+(links to the ground truth, a validated copy of each tracks file), runs trackeval's MOTChallenge
+dataset with the rules of the sequence's benchmark, and keeps its console output quiet.
+
+Rules: MOT16/17/20 gt has class and visibility columns: only class 1 (pedestrian) with a non-zero
+flag is scored, and tracker boxes matched to distractor classes are removed before scoring
+(MOT20 also counts non-MOT vehicles as distractors). MOT15 gt has no classes: every box whose
+flag is not 0 is a pedestrian.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import os
+import tempfile
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from densepeds import motio
+from densepeds.errors import InputError, ParameterError
+
+__all__ = ["METRICS", "EvalResult", "detect_benchmark", "evaluate", "format_results"]
+
+# Reported metrics, in table order. Ratios are percentages (0-100); the rest are counts.
+METRICS = ("HOTA", "DetA", "AssA", "MOTA", "MOTP", "IDF1", "MT", "ML", "FP", "FN", "IDSW")
+COUNT_METRICS = frozenset(
+    {"MT", "ML", "FP", "FN", "IDSW", "Frag", "GT_IDs", "IDs", "GT_Dets", "Dets"}
+)
+BENCHMARKS = ("MOT15", "MOT16", "MOT17", "MOT20")
+COMBINED = "COMBINED"
+_TRACKER = "tracker"
+
+
+@dataclass
+class EvalResult:
+    """Metrics per sequence and over all sequences together (trackeval's combination)."""
+
+    sequences: dict[str, dict[str, float]]
+    combined: dict[str, float]
+    benchmarks: dict[str, str] = field(default_factory=dict)
+
+    def rows(self) -> list[tuple[str, dict[str, float]]]:
+        """(name, metrics) per sequence in input order, then the combined row."""
+        return [*self.sequences.items(), (COMBINED, self.combined)]
+
+
+def detect_benchmark(seq_name: str, gt: np.ndarray) -> str:
+    """MOT20/MOT17 rules where the gt has class columns, MOT15 rules where it does not."""
+    upper = seq_name.upper()
+    if "MOT20" in upper:
+        return "MOT20"
+    if "MOT16" in upper or "MOT17" in upper:
+        return "MOT17"
+    if gt.shape[1] == 9 and len(gt):
+        classes, vis = gt[:, 7], gt[:, 8]
+        has_classes = bool(
+            np.all(classes == np.round(classes))
+            and np.all((classes >= 1) & (classes <= 13))
+            and np.all((vis >= 0) & (vis <= 1))
+        )
+        if has_classes:
+            return "MOT17"
+    return "MOT15"
+
+
+@dataclass
+class _Seq:
+    name: str
+    gt_file: Path
+    length: int
+    benchmark: str
+    tracks: np.ndarray
+
+
+def _seq_name(gt_dir: Path) -> str:
+    return gt_dir.resolve().name
+
+
+def _tracks_file(
+    tracks: Mapping[str, str | os.PathLike[str]] | str | os.PathLike[str],
+    name: str,
+    alias: str,
+    single: bool,
+) -> Path:
+    if isinstance(tracks, Mapping):
+        for key in (name, alias):
+            if key in tracks:
+                return Path(tracks[key])
+        raise InputError(f"no tracks given for sequence {name} (keys: {', '.join(tracks)})")
+    p = Path(tracks)
+    if p.is_dir():
+        for key in (name, alias):
+            if (p / f"{key}.txt").is_file():
+                return p / f"{key}.txt"
+        raise InputError(f"{p}: no {name}.txt tracks file in this folder")
+    if not single:
+        raise InputError(
+            f"{p}: a single tracks file given for several sequences; pass a folder "
+            "of <sequence>.txt files or a mapping"
+        )
+    return p
+
+
+def _load_sequence(gt_dir: Path, tracks_path: Path, benchmark: str) -> _Seq:
+    gt_file = gt_dir / "gt" / "gt.txt"
+    if not gt_file.is_file():
+        raise InputError(f"{gt_dir}: no gt/gt.txt (is it a MOTChallenge sequence folder?)")
+    gt = motio.read_gt(gt_file)
+    tracks = motio.read_tracks(tracks_path)
+    name = _seq_name(gt_dir)
+    if (gt_dir / "seqinfo.ini").is_file():
+        length = motio.read_seqinfo(gt_dir).length
+    else:
+        length = int(max(gt[:, 0].max(initial=0), tracks[:, 0].max(initial=0)))
+    if len(gt) and gt[:, 0].max() > length:
+        raise InputError(f"{gt_file}: frames go to {gt[:, 0].max():.0f}, past seqLength={length}")
+    if len(tracks) and tracks[:, 0].max() > length:
+        raise InputError(
+            f"{tracks_path}: frames go to {tracks[:, 0].max():.0f} but sequence {name} has "
+            f"{length} frames"
+        )
+    pairs = tracks[:, :2].astype(np.int64)
+    uniq, counts = np.unique(pairs, axis=0, return_counts=True)
+    if (counts > 1).any():
+        f, i = uniq[np.argmax(counts > 1)]
+        raise InputError(f"{tracks_path}: track id {i} appears twice in frame {f}")
+    if benchmark == "auto":
+        bench = detect_benchmark(name, gt)
+    elif benchmark in BENCHMARKS:
+        bench = "MOT17" if benchmark == "MOT16" else benchmark
+    else:
+        raise ParameterError(
+            f"benchmark must be auto or one of {', '.join(BENCHMARKS)}, got {benchmark!r}"
+        )
+    if bench != "MOT15" and gt.shape[1] < 8:
+        raise InputError(f"{gt_file}: {bench} rules need a class column (8+ columns)")
+    return _Seq(name, gt_file.resolve(), length, bench, tracks)
+
+
+def _link_or_copy(src: Path, dst: Path) -> None:
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        dst.symlink_to(src)
+    except OSError:
+        dst.write_bytes(src.read_bytes())
+
+
+def _plain(metric: str, value: Any) -> float:
+    """trackeval value -> a plain float: HOTA arrays averaged over IoU thresholds, ratios in %."""
+    v = float(np.mean(value))
+    return v if metric in COUNT_METRICS else 100.0 * v
+
+
+def _flatten(res: Mapping[str, Mapping[str, Any]]) -> dict[str, float]:
+    hota, clear, ident, count = res["HOTA"], res["CLEAR"], res["Identity"], res["Count"]
+    out = {
+        "HOTA": hota["HOTA"],
+        "DetA": hota["DetA"],
+        "AssA": hota["AssA"],
+        "MOTA": clear["MOTA"],
+        "MOTP": clear["MOTP"],
+        "IDF1": ident["IDF1"],
+        "IDP": ident["IDP"],
+        "IDR": ident["IDR"],
+        "MT": clear["MT"],
+        "ML": clear["ML"],
+        "FP": clear["CLR_FP"],
+        "FN": clear["CLR_FN"],
+        "IDSW": clear["IDSW"],
+        "Frag": clear["Frag"],
+        "GT_IDs": count["GT_IDs"],
+        "IDs": count["IDs"],
+    }
+    return {k: _plain(k, v) for k, v in out.items()}
+
+
+def evaluate(
+    gt_dirs: Sequence[str | os.PathLike[str]],
+    tracks: Mapping[str, str | os.PathLike[str]] | str | os.PathLike[str],
+    *,
+    benchmark: str = "auto",
+) -> EvalResult:
+    """Score tracker output against MOTChallenge ground truth with trackeval.
+
+    gt_dirs: sequence folders, each with gt/gt.txt (and seqinfo.ini for the length; without it the
+        last frame of gt or tracks is used).
+    tracks: {sequence name: tracks file}, a folder of ``<sequence>.txt``, or one file when there is
+        one sequence. The sequence name is the folder's name.
+    benchmark: "auto" (from the gt columns and the sequence name) or MOT15/MOT16/MOT17/MOT20.
+    """
+    import trackeval  # heavy import (matplotlib, scipy) only when evaluating
+
+    dirs = [Path(d) for d in gt_dirs]
+    if not dirs:
+        raise InputError("no ground-truth sequence folders given")
+    seqs: list[_Seq] = []
+    for d in dirs:
+        if not d.is_dir():
+            raise InputError(f"{d}: ground-truth sequence folder not found")
+        alias = d.name
+        if (d / "seqinfo.ini").is_file():
+            alias = motio.read_seqinfo(d).name
+        tpath = _tracks_file(tracks, _seq_name(d), alias, single=len(dirs) == 1)
+        seqs.append(_load_sequence(d, tpath, benchmark))
+    names = [s.name for s in seqs]
+    if len(set(names)) != len(names):
+        raise InputError(f"sequence folders with the same name: {names}")
+
+    metrics = [
+        trackeval.metrics.HOTA({"PRINT_CONFIG": False}),
+        trackeval.metrics.CLEAR({"PRINT_CONFIG": False}),
+        trackeval.metrics.Identity({"PRINT_CONFIG": False}),
+        trackeval.metrics.Count(),
+    ]
+    metric_names = [m.get_name() for m in metrics]
+    per_seq: dict[str, dict[str, Any]] = {}
+    log = io.StringIO()
+    with (
+        tempfile.TemporaryDirectory(prefix="densepeds-eval-") as tmp,
+        contextlib.redirect_stdout(log),
+        np.errstate(all="ignore"),
+    ):
+        root = Path(tmp)
+        for s in seqs:
+            _link_or_copy(s.gt_file, root / "gt" / s.name / "gt" / "gt.txt")
+            motio.write_tracks(root / "trackers" / _TRACKER / "data" / f"{s.name}.txt", s.tracks)
+        for bench in sorted({s.benchmark for s in seqs}):
+            group = [s for s in seqs if s.benchmark == bench]
+            config = {
+                "GT_FOLDER": str(root / "gt"),
+                "TRACKERS_FOLDER": str(root / "trackers"),
+                "TRACKERS_TO_EVAL": [_TRACKER],
+                "BENCHMARK": bench,
+                "SKIP_SPLIT_FOL": True,
+                "SEQ_INFO": {s.name: s.length for s in group},
+                "PRINT_CONFIG": False,
+            }
+            try:
+                dataset = trackeval.datasets.MotChallenge2DBox(config)
+                for s in group:
+                    per_seq[s.name] = trackeval.eval.eval_sequence(
+                        s.name, dataset, _TRACKER, ["pedestrian"], metrics, metric_names
+                    )["pedestrian"]
+            except trackeval.utils.TrackEvalException as err:
+                raise InputError(f"trackeval could not evaluate {bench} sequences: {err}") from err
+        combined = {
+            name: metric.combine_sequences({s: per_seq[s][name] for s in names})
+            for metric, name in zip(metrics, metric_names, strict=True)
+        }
+    return EvalResult(
+        sequences={s: _flatten(per_seq[s]) for s in names},
+        combined=_flatten(combined),
+        benchmarks={s.name: s.benchmark for s in seqs},
+    )
+
+
+def _fmt_value(metric: str, value: float) -> str:
+    return f"{value:.0f}" if metric in COUNT_METRICS else f"{value:.2f}"
+
+
+def format_results(result: EvalResult, fmt: str = "md", metrics: Sequence[str] = METRICS) -> str:
+    """The result as a Markdown table, CSV, or JSON (all metrics, full precision)."""
+    rows = result.rows()
+    if fmt == "json":
+        return json.dumps(
+            {
+                "sequences": result.sequences,
+                "combined": result.combined,
+                "benchmarks": result.benchmarks,
+            },
+            indent=2,
+        )
+    unknown = [m for m in metrics if m not in result.combined]
+    if unknown:
+        raise ParameterError(f"unknown metrics {unknown}; known: {', '.join(result.combined)}")
+    if fmt == "csv":
+        lines = [",".join(["sequence", *metrics])]
+        lines += [",".join([n, *(repr(float(r[m])) for m in metrics)]) for n, r in rows]
+        return "\n".join(lines) + "\n"
+    if fmt == "md":
+        lines = ["| sequence | " + " | ".join(metrics) + " |", "|---|" + "---:|" * len(metrics)]
+        for n, r in rows:
+            name = f"**{n}**" if n == COMBINED else n
+            lines.append(f"| {name} | " + " | ".join(_fmt_value(m, r[m]) for m in metrics) + " |")
+        return "\n".join(lines) + "\n"
+    raise ParameterError(f"format must be md, csv or json, got {fmt!r}")

@@ -1,0 +1,282 @@
+"""MOTChallenge text files: sequence info, detections, ground truth and tracker output.
+
+Layouts (one object per line, comma separated):
+  det.txt     frame, -1, left, top, width, height, score[, x, y, z]   (score: any range)
+  gt.txt      frame, id, left, top, width, height, flag, class, visibility   (MOT16/17/20)
+              frame, id, left, top, width, height, flag, x, y, z             (MOT15)
+  tracks.txt  frame, id, left, top, width, height, conf, -1, -1, -1
+Frames are numbered from 1. Every parse error names the file and the 1-based line.
+"""
+
+from __future__ import annotations
+
+import configparser
+import os
+import tempfile
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from densepeds.errors import DetFileError, InputError
+from densepeds.types import Detections
+
+__all__ = [
+    "SeqInfo",
+    "read_detections",
+    "read_gt",
+    "read_mot_rows",
+    "read_seqinfo",
+    "read_tracks",
+    "write_tracks",
+]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class SeqInfo:
+    """The [Sequence] section of a MOTChallenge ``seqinfo.ini``."""
+
+    name: str
+    length: int
+    width: int
+    height: int
+    fps: float
+    im_dir: str
+    im_ext: str
+    path: Path
+
+    @property
+    def image_dir(self) -> Path:
+        return self.path / self.im_dir
+
+    def frame_path(self, frame: int) -> Path:
+        """The image of a 1-based frame number (MOTChallenge names images 000001.jpg, ...)."""
+        return self.image_dir / f"{frame:06d}{self.im_ext}"
+
+
+def read_seqinfo(seq_dir: str | os.PathLike[str]) -> SeqInfo:
+    """Read ``seq_dir/seqinfo.ini`` (``seq_dir`` may also be the ini file itself)."""
+    path = Path(seq_dir)
+    ini = path if path.suffix == ".ini" else path / "seqinfo.ini"
+    seq_path = ini.parent
+    if not ini.is_file():
+        raise InputError(f"{ini}: no seqinfo.ini (is {seq_path} a MOTChallenge sequence folder?)")
+    parser = configparser.ConfigParser()
+    try:
+        parser.read(ini, encoding="utf-8")
+    except configparser.Error as err:
+        raise InputError(f"{ini}: not a valid ini file ({err.message})") from err
+    if "Sequence" not in parser:
+        raise InputError(f"{ini}: missing the [Sequence] section")
+    sec = parser["Sequence"]
+
+    def field(key: str, kind: type, default: object = None) -> object:
+        if key not in sec:
+            if default is not None:
+                return default
+            raise InputError(f"{ini}: [Sequence] has no {key}=")
+        raw = sec[key].strip()
+        try:
+            value = kind(raw)
+        except ValueError as err:
+            raise InputError(f"{ini}: {key}={raw!r} is not a valid {kind.__name__}") from err
+        if kind in (int, float) and not (np.isfinite(value) and value > 0):
+            raise InputError(f"{ini}: {key}={raw!r} must be positive")
+        return value
+
+    return SeqInfo(
+        name=str(field("name", str, seq_path.name)),
+        length=int(field("seqLength", int)),  # type: ignore[call-overload]
+        width=int(field("imWidth", int)),  # type: ignore[call-overload]
+        height=int(field("imHeight", int)),  # type: ignore[call-overload]
+        fps=float(field("frameRate", float)),  # type: ignore[arg-type]
+        im_dir=str(field("imDir", str, "img1")),
+        im_ext=str(field("imExt", str, ".jpg")),
+        path=seq_path,
+    )
+
+
+def _locate_bad_line(path: Path, lines: list[str], line_nos: list[int], ncols: int) -> DetFileError:
+    """Scan line by line for the first unparsable row (the slow path, only after a failure)."""
+    for text, no in zip(lines, line_nos, strict=True):
+        fields = text.split(",")
+        if len(fields) != ncols:
+            return DetFileError(f"{path}:{no}: expected {ncols} columns, found {len(fields)}")
+        for col, value in enumerate(fields):
+            try:
+                float(value)
+            except ValueError:
+                return DetFileError(
+                    f"{path}:{no}: column {col + 1} is not a number: {value.strip()!r}"
+                )
+    return DetFileError(f"{path}: cannot parse as comma-separated numbers")
+
+
+def read_mot_rows(
+    path: str | os.PathLike[str], *, min_cols: int, what: str = "MOT"
+) -> tuple[FloatArray, npt.NDArray[np.int64]]:
+    """Parse a MOTChallenge text file into a float64 [K, C] array and the 1-based line of each row.
+
+    Blank lines are skipped. Raises DetFileError naming ``file:line`` for a wrong column count, a
+    non-number, NaN/inf, or a frame number that is not a positive integer.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise DetFileError(f"{p}: {what} file not found")
+    try:
+        text = p.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as err:
+        raise DetFileError(f"{p}: cannot read {what} file ({err})") from err
+    raw_lines = text.splitlines()
+    line_nos = [i + 1 for i, line in enumerate(raw_lines) if line.strip()]
+    lines = [raw_lines[i - 1].strip().rstrip(",") for i in line_nos]
+    if not lines:
+        return np.zeros((0, min_cols)), np.zeros(0, np.int64)
+    ncols = len(lines[0].split(","))
+    if ncols < min_cols:
+        raise DetFileError(
+            f"{p}:{line_nos[0]}: {what} rows need at least {min_cols} columns, found {ncols}"
+        )
+    try:
+        data = np.loadtxt(lines, delimiter=",", dtype=np.float64, ndmin=2)
+    except ValueError:
+        raise _locate_bad_line(p, lines, line_nos, ncols) from None
+    if data.shape[1] != ncols:  # loadtxt accepts no ragged rows, but be explicit
+        raise _locate_bad_line(p, lines, line_nos, ncols)
+    nos = np.asarray(line_nos, dtype=np.int64)
+    bad = ~np.isfinite(data).all(axis=1)
+    if bad.any():
+        no = nos[np.argmax(bad)]
+        raise DetFileError(f"{p}:{no}: NaN or infinite value")
+    frames = data[:, 0]
+    bad = (frames < 1) | (frames != np.round(frames))
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise DetFileError(f"{p}:{nos[i]}: frame {frames[i]:g} is not a positive integer")
+    return data, nos
+
+
+def _check_sizes(
+    path: str | os.PathLike[str], data: FloatArray, nos: npt.NDArray[np.int64]
+) -> None:
+    bad = (data[:, 4] <= 0) | (data[:, 5] <= 0)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise DetFileError(
+            f"{path}:{nos[i]}: box width and height must be positive, got "
+            f"{data[i, 4]:g} x {data[i, 5]:g}"
+        )
+
+
+def read_detections(
+    path: str | os.PathLike[str], *, min_score: float | None = None
+) -> dict[int, Detections]:
+    """Read a det.txt into {frame: Detections}; frames without detections are absent.
+
+    Scores are kept as they are (MOT15 uses arbitrary ranges, even negative). ``min_score`` drops
+    detections scoring below it. An empty file gives ``{}``.
+    """
+    data, nos = read_mot_rows(path, min_cols=7, what="detections")
+    if len(data) == 0:
+        return {}
+    _check_sizes(path, data, nos)
+    if min_score is not None:
+        data = data[data[:, 6] >= min_score]
+    order = np.argsort(data[:, 0], kind="stable")
+    data = data[order]
+    boxes = np.empty((len(data), 4), np.float32)
+    boxes[:, :2] = data[:, 2:4]
+    boxes[:, 2:] = data[:, 2:4] + data[:, 4:6]
+    scores = data[:, 6].astype(np.float32)
+    frames = data[:, 0].astype(np.int64)
+    starts = np.flatnonzero(np.r_[True, frames[1:] != frames[:-1]])
+    ends = np.r_[starts[1:], len(frames)]
+    return {
+        int(frames[s]): Detections(boxes[s:e], scores[s:e])
+        for s, e in zip(starts, ends, strict=True)
+    }
+
+
+def read_gt(path: str | os.PathLike[str]) -> FloatArray:
+    """Read a gt.txt as float64 [K, C] in the file's own columns (C >= 7; see module docstring)."""
+    data, nos = read_mot_rows(path, min_cols=7, what="ground-truth")
+    if len(data):
+        _check_sizes(path, data, nos)
+    return data
+
+
+def read_tracks(path: str | os.PathLike[str]) -> FloatArray:
+    """Read tracker output as float64 [K, 7]: frame, id, x1, y1, x2, y2, score.
+
+    The same layout that :func:`write_tracks` takes, so a round trip is the identity (to the
+    written precision). Files with only 6 columns get score 1.
+    """
+    data, nos = read_mot_rows(path, min_cols=6, what="tracks")
+    out = np.zeros((len(data), 7))
+    if len(data) == 0:
+        return out
+    _check_sizes(path, data, nos)
+    ids = data[:, 1]
+    bad = ids != np.round(ids)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise DetFileError(f"{path}:{nos[i]}: track id {ids[i]:g} is not an integer")
+    out[:, :2] = data[:, :2]
+    out[:, 2:4] = data[:, 2:4]
+    out[:, 4:6] = data[:, 2:4] + data[:, 4:6]
+    out[:, 6] = data[:, 6] if data.shape[1] > 6 else 1.0
+    return out
+
+
+def _rows_array(rows: Iterable[tuple[float, ...]] | npt.ArrayLike) -> FloatArray:
+    arr = np.asarray(rows if isinstance(rows, np.ndarray) else list(rows), dtype=np.float64)  # type: ignore[arg-type]
+    if arr.size == 0:
+        return np.zeros((0, 7))
+    if arr.ndim != 2 or arr.shape[1] != 7:
+        raise InputError(
+            f"track rows must be (frame, id, x1, y1, x2, y2, score), got shape {arr.shape}"
+        )
+    if not np.isfinite(arr).all():
+        raise InputError("track rows contain NaN or infinite values")
+    frames, ids = arr[:, 0], arr[:, 1]
+    if ((frames < 1) | (frames != np.round(frames))).any():
+        raise InputError("track frames must be integers >= 1")
+    if (ids != np.round(ids)).any():
+        raise InputError("track ids must be integers")
+    if ((arr[:, 4] < arr[:, 2]) | (arr[:, 5] < arr[:, 3])).any():
+        raise InputError("track boxes must have x2 >= x1 and y2 >= y1")
+    return arr
+
+
+def write_tracks(
+    path: str | os.PathLike[str], rows: Iterable[tuple[float, ...]] | npt.ArrayLike
+) -> int:
+    """Write tracks in MOTChallenge format, sorted by frame then id. Returns the row count.
+
+    ``rows``: (frame, id, x1, y1, x2, y2, score) tuples or a [K, 7] array. The file is written to
+    a temporary file beside ``path`` and moved over it only when complete, so an interrupted run
+    never leaves a truncated file that looks finished.
+    """
+    arr = _rows_array(rows)
+    arr = arr[np.lexsort((arr[:, 1], arr[:, 0]))]
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    lines = [
+        f"{int(f)},{int(i)},{x1:.3f},{y1:.3f},{x2 - x1:.3f},{y2 - y1:.3f},{s:.6g},-1,-1,-1\n"
+        for f, i, x1, y1, x2, y2, s in arr.tolist()
+    ]
+    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.writelines(lines)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, out)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return len(lines)
