@@ -52,6 +52,18 @@ class EvalResult:
         return [*self.sequences.items(), (COMBINED, self.combined)]
 
 
+def _has_mot17_classes(gt: np.ndarray) -> bool:
+    """Whether columns 8 and 9 are MOTChallenge class ids (1-13) and visibilities (0-1)."""
+    if gt.shape[1] < 9 or not len(gt):
+        return False
+    classes, vis = gt[:, 7], gt[:, 8]
+    return bool(
+        np.all(classes == np.round(classes))
+        and np.all((classes >= 1) & (classes <= 13))
+        and np.all((vis >= 0) & (vis <= 1))
+    )
+
+
 def detect_benchmark(seq_name: str, gt: np.ndarray) -> str:
     """MOT20/MOT17 rules where the gt has class columns, MOT15 rules where it does not."""
     upper = seq_name.upper()
@@ -59,16 +71,7 @@ def detect_benchmark(seq_name: str, gt: np.ndarray) -> str:
         return "MOT20"
     if "MOT16" in upper or "MOT17" in upper:
         return "MOT17"
-    if gt.shape[1] == 9 and len(gt):
-        classes, vis = gt[:, 7], gt[:, 8]
-        has_classes = bool(
-            np.all(classes == np.round(classes))
-            and np.all((classes >= 1) & (classes <= 13))
-            and np.all((vis >= 0) & (vis <= 1))
-        )
-        if has_classes:
-            return "MOT17"
-    return "MOT15"
+    return "MOT17" if _has_mot17_classes(gt) else "MOT15"
 
 
 @dataclass
@@ -140,8 +143,11 @@ def _load_sequence(gt_dir: Path, tracks_path: Path, benchmark: str) -> _Seq:
         raise ParameterError(
             f"benchmark must be auto or one of {', '.join(BENCHMARKS)}, got {benchmark!r}"
         )
-    if bench != "MOT15" and gt.shape[1] < 8:
-        raise InputError(f"{gt_file}: {bench} rules need a class column (8+ columns)")
+    if bench != "MOT15" and len(gt) and not _has_mot17_classes(gt):
+        raise InputError(
+            f"{gt_file}: {bench} rules need class and visibility columns (8th: class id 1-13, "
+            "9th: visibility 0-1); use benchmark='MOT15' for gt without classes"
+        )
     return _Seq(name, gt_file.resolve(), length, bench, tracks)
 
 
