@@ -1,0 +1,115 @@
+"""onnxruntime sessions on CPU, and dynamic-batch copies of fixed-batch models.
+
+Batching all tiles (or all crops) into one call saves the per-call overhead and lets onnxruntime
+parallelise over the batch; a model exported with batch fixed to 1 is rewritten once, in memory.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import onnx
+import onnxruntime as ort
+from onnx import numpy_helper
+
+from densepeds.errors import ModelError, ParameterError
+
+BATCH_DIM = "batch"
+
+
+@dataclass(frozen=True)
+class TensorSpec:
+    name: str
+    shape: tuple[int | str | None, ...]
+    dtype: str  # onnxruntime type string, e.g. "tensor(float)"
+
+
+def load_model(path: Path) -> onnx.ModelProto:
+    try:
+        return onnx.load(str(path))
+    except Exception as exc:  # onnx raises several unrelated types for a corrupt file
+        raise ModelError(f"{path} is not a readable ONNX model: {exc}") from exc
+
+
+def session_options(threads: int | None) -> ort.SessionOptions:
+    if threads is not None and threads < 1:
+        raise ParameterError(f"threads must be >= 1 or None, got {threads}")
+    opts = ort.SessionOptions()
+    opts.intra_op_num_threads = threads or (os.cpu_count() or 1)
+    opts.inter_op_num_threads = 1
+    opts.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
+    opts.log_severity_level = 3  # the int8 export triggers harmless deprecation warnings
+    return opts
+
+
+def make_session(model: onnx.ModelProto | Path, threads: int | None) -> ort.InferenceSession:
+    data = model.SerializeToString() if isinstance(model, onnx.ModelProto) else str(model)
+    try:
+        return ort.InferenceSession(
+            data, sess_options=session_options(threads), providers=["CPUExecutionProvider"]
+        )
+    except Exception as exc:
+        raise ModelError(f"onnxruntime cannot load the model: {exc}") from exc
+
+
+def specs(values: list[ort.NodeArg]) -> list[TensorSpec]:
+    return [TensorSpec(v.name, tuple(v.shape), v.type) for v in values]
+
+
+def has_fixed_batch(model: onnx.ModelProto) -> bool:
+    dims = model.graph.input[0].type.tensor_type.shape.dim
+    return len(dims) > 0 and dims[0].HasField("dim_value")
+
+
+def with_dynamic_batch(model: onnx.ModelProto) -> onnx.ModelProto:
+    """A copy of ``model`` whose leading (batch) dimension is symbolic.
+
+    Graph inputs/outputs get a symbolic first dim, stale intermediate shape annotations are
+    dropped, and every Reshape whose constant target shape starts with 1 gets 0 there instead
+    ("copy the input's dim"), so batch N flows through. Callers must check the copy against the
+    original (tests do, on the shipped models).
+    """
+    out = onnx.ModelProto()
+    out.CopyFrom(model)
+    graph = out.graph
+    for value in list(graph.input) + list(graph.output):
+        dims = value.type.tensor_type.shape.dim
+        if len(dims) > 0:
+            dims[0].Clear()
+            dims[0].dim_param = BATCH_DIM
+    del graph.value_info[:]
+    inits = {init.name: init for init in graph.initializer}
+    consumers: dict[str, int] = {}
+    for node in graph.node:
+        for name in node.input:
+            consumers[name] = consumers.get(name, 0) + 1
+    for node in graph.node:
+        if node.op_type != "Reshape" or node.input[1] not in inits:
+            continue
+        target = numpy_helper.to_array(inits[node.input[1]])
+        if target.ndim != 1 or len(target) < 2 or target[0] != 1:
+            continue
+        patched = target.copy()
+        patched[0] = 0
+        new_name = f"{node.input[1]}__dynamic_batch"
+        if new_name not in inits:
+            init = numpy_helper.from_array(patched, new_name)
+            graph.initializer.append(init)
+            inits[new_name] = init
+        node.input[1] = new_name
+    return out
+
+
+def batched_session(path: Path, threads: int | None) -> tuple[ort.InferenceSession, bool]:
+    """A session accepting any batch size, and whether the model had to be rewritten for it."""
+    model = load_model(path)
+    if not has_fixed_batch(model):
+        return make_session(model, threads), False
+    return make_session(with_dynamic_batch(model), threads), True
+
+
+def as_float32(array: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(array, dtype=np.float32)

@@ -1,0 +1,247 @@
+"""YOLOv8/YOLO11 instance segmentation (Ultralytics ONNX output contract) on CPU.
+
+Outputs: predictions [B, 4 + nc + nm, A] (cx, cy, w, h; nc class scores; nm mask coefficients)
+and prototypes [B, nm, Hp, Wp] or [B, Hp, Wp, nm]; a mask is sigmoid(proto @ coef) cropped to
+its box. Input size and layout (NCHW or NHWC) are read from the model. All tiles of a frame go
+through onnxruntime in one batched call; masks are rendered only inside each kept box.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+from densepeds.detect import onnxutil
+from densepeds.detect.tiling import Tile, TilesSpec, cut_flags, make_tiles, merge_views, parse_grid
+from densepeds.errors import InputError, ModelError, ParameterError
+from densepeds.types import Detections
+
+LETTERBOX_GREY = 114
+EXPECTED = (
+    "a YOLOv8/YOLO11-seg ONNX model: one image input [1,3,H,W] or [1,H,W,3] (RGB in [0,1]) and "
+    "outputs [1,4+classes+masks,anchors] and prototypes [1,masks,h,w] or [1,h,w,masks]"
+)
+
+
+@dataclass(frozen=True)
+class _View:
+    """A frame region letterboxed into the model input: input = (frame - origin) * scale."""
+
+    tile: Tile
+    scale: float
+    is_tile: bool
+
+
+def check_frame(frame: npt.NDArray[np.uint8]) -> None:
+    if not isinstance(frame, np.ndarray) or frame.ndim != 3 or frame.shape[2] != 3:
+        shape = getattr(frame, "shape", None)
+        raise InputError(f"frame must be a BGR uint8 array [H, W, 3], got shape {shape}")
+    if frame.dtype != np.uint8:
+        raise InputError(f"frame must be uint8 BGR, got dtype {frame.dtype}")
+    if frame.shape[0] < 2 or frame.shape[1] < 2:
+        raise InputError(f"frame is too small: {frame.shape}")
+
+
+class YoloSegDetector:
+    """Person detector and segmenter; call it on a BGR frame to get Detections with masks."""
+
+    def __init__(
+        self,
+        model: Path,
+        *,
+        tiles: TilesSpec = "auto",
+        score_threshold: float = 0.15,
+        iou_threshold: float = 0.6,
+        full_frame: bool = True,
+        batch_views: bool = True,
+        with_masks: bool = True,
+        threads: int | None = None,
+        person_class: int = 0,
+    ) -> None:
+        if not 0.0 <= score_threshold <= 1.0:
+            raise ParameterError(f"score_threshold must be in [0, 1], got {score_threshold}")
+        if not 0.0 < iou_threshold <= 1.0:
+            raise ParameterError(f"iou_threshold must be in (0, 1], got {iou_threshold}")
+        self.tiles = tiles
+        self.score_threshold = score_threshold
+        self.iou_threshold = iou_threshold
+        self.full_frame = full_frame
+        self.with_masks = with_masks
+        self.person_class = person_class
+        self.path = model
+        self.session, self.rewritten = onnxutil.batched_session(model, threads)
+        self.batch_views = batch_views
+        self._read_contract()
+
+    # --- model contract -------------------------------------------------------------------
+    def _read_contract(self) -> None:
+        inputs = onnxutil.specs(self.session.get_inputs())
+        outputs = onnxutil.specs(self.session.get_outputs())
+        if len(inputs) != 1 or len(inputs[0].shape) != 4 or len(outputs) != 2:
+            raise ModelError(
+                f"{self.path}: expected {EXPECTED}; got inputs {inputs}, outputs {outputs}"
+            )
+        shape = inputs[0].shape
+        if shape[3] == 3:
+            self.nhwc, hw = True, shape[1:3]
+        elif shape[1] == 3:
+            self.nhwc, hw = False, shape[2:4]
+        else:
+            raise ModelError(f"{self.path}: input shape {shape} is neither NCHW nor NHWC RGB")
+        if not all(isinstance(v, int) for v in hw):
+            raise ModelError(f"{self.path}: input size must be fixed, got {shape}")
+        self.input_h, self.input_w = int(hw[0]), int(hw[1])  # type: ignore[arg-type]
+        self.input_name = inputs[0].name
+        ranks = [len(o.shape) for o in outputs]
+        if sorted(ranks) != [3, 4]:
+            raise ModelError(f"{self.path}: expected {EXPECTED}; got outputs {outputs}")
+        self.pred_index = ranks.index(3)
+        self.proto_index = ranks.index(4)
+        self._probe()
+
+    def _probe(self) -> None:
+        """Run a grey image once: fixes the output layouts and whether boxes are normalised."""
+        preds, protos = self._infer(
+            np.full((1, self.input_h, self.input_w, 3), LETTERBOX_GREY, np.uint8)
+        )
+        self.proto_nhwc = protos.shape[3] < protos.shape[1]
+        self.num_masks = protos.shape[3] if self.proto_nhwc else protos.shape[1]
+        if preds.shape[1] > preds.shape[2]:  # [1, A, C] exports: channels last
+            self.pred_transposed = True
+            channels = preds.shape[2]
+        else:
+            self.pred_transposed = False
+            channels = preds.shape[1]
+        self.num_classes = channels - 4 - self.num_masks
+        if self.num_classes <= self.person_class:
+            raise ModelError(
+                f"{self.path}: {channels} prediction channels leave {self.num_classes} classes "
+                f"for {self.num_masks} mask coefficients; expected {EXPECTED}"
+            )
+        centres = preds[0, :, :2] if self.pred_transposed else preds[0, :2, :].T
+        # Normalised exports put every anchor centre in [0, 1]; pixel exports reach the size.
+        self.box_scale = (
+            np.array([self.input_w, self.input_h], np.float64)
+            if float(np.abs(centres).max()) <= 1.5
+            else np.ones(2)
+        )
+
+    def _infer(self, batch_u8: npt.NDArray[np.uint8]) -> tuple[np.ndarray, np.ndarray]:
+        """batch_u8: BGR uint8 [B, H, W, 3] letterboxed views -> (predictions, prototypes)."""
+        x = batch_u8[..., ::-1].astype(np.float32) * np.float32(1 / 255)
+        if not self.nhwc:
+            x = x.transpose(0, 3, 1, 2)
+        x = np.ascontiguousarray(x)
+        if self.batch_views:
+            out = self.session.run(None, {self.input_name: x})
+            return out[self.pred_index], out[self.proto_index]
+        parts = [self.session.run(None, {self.input_name: x[i : i + 1]}) for i in range(len(x))]
+        preds = np.concatenate([p[self.pred_index] for p in parts])
+        protos = np.concatenate([p[self.proto_index] for p in parts])
+        return preds, protos
+
+    # --- detection --------------------------------------------------------------------------
+    def views(self, width: int, height: int) -> list[_View]:
+        cols, rows = parse_grid(self.tiles, width, height, max(self.input_w, self.input_h))
+        whole = Tile(0, 0, width, height, (False, False, False, False))
+        tiles = make_tiles(width, height, cols, rows) if cols * rows > 1 else []
+        regions = [(t, True) for t in tiles]
+        if not tiles or self.full_frame:
+            regions.append((whole, False))
+        return [
+            _View(t, min(self.input_w / (t.x1 - t.x0), self.input_h / (t.y1 - t.y0)), is_tile)
+            for t, is_tile in regions
+        ]
+
+    def __call__(self, frame: npt.NDArray[np.uint8]) -> Detections:
+        check_frame(frame)
+        height, width = frame.shape[:2]
+        views = self.views(width, height)
+        batch = np.full((len(views), self.input_h, self.input_w, 3), LETTERBOX_GREY, np.uint8)
+        for k, v in enumerate(views):
+            t = v.tile
+            w = min(self.input_w, max(1, round((t.x1 - t.x0) * v.scale)))
+            h = min(self.input_h, max(1, round((t.y1 - t.y0) * v.scale)))
+            batch[k, :h, :w] = cv2.resize(
+                frame[t.y0 : t.y1, t.x0 : t.x1], (w, h), interpolation=cv2.INTER_LINEAR
+            )
+        preds, protos = self._infer(batch)
+        if self.pred_transposed:
+            preds = preds.transpose(0, 2, 1)
+        scores_all = preds[:, 4 + self.person_class, :]
+        view_idx, anchor_idx = np.nonzero(scores_all > self.score_threshold)
+        if len(view_idx) == 0:
+            return Detections.empty()
+        cand = preds[view_idx, :, anchor_idx]  # [K, C]
+        scores = cand[:, 4 + self.person_class]
+        cxcy = cand[:, 0:2] * self.box_scale
+        half = cand[:, 2:4] * self.box_scale / 2
+        scale = np.array([views[i].scale for i in range(len(views))])[view_idx, None]
+        origin = np.array([[v.tile.x0, v.tile.y0] for v in views], np.float64)[view_idx]
+        boxes = np.concatenate([cxcy - half, cxcy + half], axis=1) / scale
+        boxes += np.tile(origin, 2)
+        np.clip(boxes, 0, [width, height, width, height], out=boxes)
+        cut = np.zeros(len(boxes), bool)
+        for k, v in enumerate(views):
+            if v.is_tile:
+                sel = view_idx == k
+                cut[sel] = cut_flags(boxes[sel], v.tile)
+        valid = (boxes[:, 2] - boxes[:, 0] >= 1) & (boxes[:, 3] - boxes[:, 1] >= 1)
+        idx = np.flatnonzero(valid)
+        merged = merge_views(boxes[idx], scores[idx], view_idx[idx], cut[idx], self.iou_threshold)
+        keep = idx[merged]
+        dets = Detections(boxes[keep], scores[keep])
+        if self.with_masks:
+            coefs = cand[keep, 4 + self.num_classes :]
+            dets.masks, dets.mask_boxes = self._masks(
+                boxes[keep], coefs, view_idx[keep], views, protos, width, height
+            )
+        return dets
+
+    def _masks(
+        self,
+        boxes: np.ndarray,
+        coefs: np.ndarray,
+        view_idx: np.ndarray,
+        views: list[_View],
+        protos: np.ndarray,
+        width: int,
+        height: int,
+    ) -> tuple[list[npt.NDArray[np.bool_]], npt.NDArray[np.int32]]:
+        """Box-local masks: the prototype logits of each box's view, warped onto its box only."""
+        mask_boxes = np.empty((len(boxes), 4), np.int32)
+        mask_boxes[:, :2] = np.floor(boxes[:, :2])
+        mask_boxes[:, 2:] = np.ceil(boxes[:, 2:])
+        np.clip(mask_boxes, 0, [width, height, width, height], out=mask_boxes)
+        masks: list[npt.NDArray[np.bool_]] = [np.zeros((0, 0), bool)] * len(boxes)
+        for k in np.unique(view_idx):
+            proto = protos[k] if self.proto_nhwc else protos[k].transpose(1, 2, 0)
+            ph, pw = proto.shape[:2]
+            members = np.flatnonzero(view_idx == k)
+            logits = proto.reshape(ph * pw, -1) @ coefs[members].T.astype(proto.dtype)
+            logits = logits.reshape(ph, pw, len(members))
+            v = views[k]
+            ax = self.input_w / pw / v.scale  # frame px per prototype cell
+            ay = self.input_h / ph / v.scale
+            for j, i in enumerate(members):
+                x0, y0, x1, y1 = mask_boxes[i]
+                # Prototype cell centre u maps to frame pixel index (u + 0.5) * a - 0.5 + origin.
+                warp = np.array(
+                    [
+                        [ax, 0.0, 0.5 * ax - 0.5 + v.tile.x0 - x0],
+                        [0.0, ay, 0.5 * ay - 0.5 + v.tile.y0 - y0],
+                    ]
+                )
+                local = cv2.warpAffine(
+                    np.ascontiguousarray(logits[:, :, j]),
+                    warp,
+                    (int(x1 - x0), int(y1 - y0)),
+                    flags=cv2.INTER_LINEAR,
+                    borderMode=cv2.BORDER_REPLICATE,
+                )
+                masks[i] = local.reshape(y1 - y0, x1 - x0) > 0
+        return masks, mask_boxes
