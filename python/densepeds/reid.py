@@ -1,0 +1,145 @@
+"""Person re-identification embeddings through onnxruntime: crops in, L2-normalised rows out.
+
+Each supported model contract is a row of MODEL_KINDS (layout, dtype, colour order,
+normalisation); the input size is read from the model. Crops are resized and sent in batches of
+``batch_size`` per onnxruntime call; a model with a fixed batch of 1 is rewritten to a dynamic
+batch once at load time.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+from densepeds.detect import onnxutil
+from densepeds.detect.yoloseg import check_frame
+from densepeds.errors import ModelError, ParameterError
+from densepeds.modelfiles import find_model
+from densepeds.segment import crops_for
+from densepeds.types import Detections
+
+DEFAULT_MODEL = "osnet_x0_25_msmt17.onnx"
+
+
+@dataclass(frozen=True)
+class ModelKind:
+    """How a re-ID model wants its input."""
+
+    layout: str  # "NCHW" or "NHWC"
+    dtype: type  # np.float32 or np.uint8
+    rgb: bool  # channel order RGB (else BGR, as OpenCV decodes)
+    scale: float  # multiply pixels by this first
+    mean: tuple[float, float, float]  # then subtract (in the model's channel order)
+    std: tuple[float, float, float]  # and divide
+
+
+MODEL_KINDS: dict[str, ModelKind] = {
+    # torchreid OSNet family: [N,3,256,128] RGB /255, ImageNet mean/std -> [N,512].
+    "osnet": ModelKind(
+        "NCHW", np.float32, True, 1 / 255, (0.485, 0.456, 0.406), (0.229, 0.224, 0.225)
+    ),
+    # DeepSORT mars-small128 (nwojke/deep_sort tools/generate_detections.py): [N,128,64,3] uint8
+    # BGR as cv2.imread gives, raw pixels (the graph normalises) -> [N,128].
+    "mars-small128": ModelKind("NHWC", np.uint8, False, 1.0, (0.0, 0.0, 0.0), (1.0, 1.0, 1.0)),
+}
+
+
+def guess_kind(layout: str, dtype: str) -> str:
+    if layout == "NHWC" and dtype == "tensor(uint8)":
+        return "mars-small128"
+    if layout == "NCHW" and dtype == "tensor(float)":
+        return "osnet"
+    raise ModelError(
+        f"cannot tell the re-ID contract from a {layout} {dtype} input; pass kind= one of "
+        f"{sorted(MODEL_KINDS)}"
+    )
+
+
+class ReID:
+    """Appearance embedder. ``embed(frame, dets, features)`` -> float32 [N, D], unit rows."""
+
+    def __init__(
+        self,
+        model: str | os.PathLike[str] | None = None,
+        *,
+        kind: str = "auto",
+        threads: int | None = None,
+        batch_size: int = 32,
+    ) -> None:
+        if batch_size < 1:
+            raise ParameterError(f"batch_size must be >= 1, got {batch_size}")
+        if kind != "auto" and kind not in MODEL_KINDS:
+            raise ParameterError(f"kind must be 'auto' or one of {sorted(MODEL_KINDS)}, got {kind}")
+        path = find_model(DEFAULT_MODEL) if model is None else find_model(str(model), model)
+        self.path: Path = path
+        self.batch_size = batch_size
+        self.session, self.rewritten = onnxutil.batched_session(path, threads)
+        inputs = onnxutil.specs(self.session.get_inputs())
+        outputs = onnxutil.specs(self.session.get_outputs())
+        if len(inputs) != 1 or len(inputs[0].shape) != 4 or len(outputs) < 1:
+            raise ModelError(
+                f"{path}: expected a re-ID model with one image input [N,3,H,W] or [N,H,W,3] "
+                f"and an embedding output [N,D]; got inputs {inputs}, outputs {outputs}"
+            )
+        shape = inputs[0].shape
+        if shape[1] == 3:
+            layout, hw = "NCHW", shape[2:4]
+        elif shape[3] == 3:
+            layout, hw = "NHWC", shape[1:3]
+        else:
+            raise ModelError(
+                f"{path}: input shape {shape} is neither NCHW nor NHWC with 3 channels"
+            )
+        if not all(isinstance(v, int) for v in hw):
+            raise ModelError(f"{path}: input height and width must be fixed, got {shape}")
+        self.kind_name = guess_kind(layout, inputs[0].dtype) if kind == "auto" else kind
+        self.kind = MODEL_KINDS[self.kind_name]
+        if self.kind.layout != layout:
+            raise ModelError(
+                f"{path}: {self.kind_name} expects {self.kind.layout}, model is {layout}"
+            )
+        self.height, self.width = int(hw[0]), int(hw[1])  # type: ignore[arg-type]
+        self.input_name = inputs[0].name
+        self.dim = int(self._run(np.zeros((1, self.height, self.width, 3), np.uint8)).shape[1])
+
+    def _run(self, batch_bgr: npt.NDArray[np.uint8]) -> npt.NDArray[np.float32]:
+        k = self.kind
+        x = batch_bgr[..., ::-1] if k.rgb else batch_bgr
+        if k.dtype is np.uint8:
+            inp = np.ascontiguousarray(x)
+        else:
+            mul = np.float32(k.scale) / np.asarray(k.std, np.float32)
+            sub = np.asarray(k.mean, np.float32) / np.asarray(k.std, np.float32)
+            inp = x.astype(np.float32) * mul - sub
+        if k.layout == "NCHW":
+            inp = inp.transpose(0, 3, 1, 2)
+        out = self.session.run(None, {self.input_name: np.ascontiguousarray(inp)})[0]
+        return np.asarray(out, np.float32).reshape(len(batch_bgr), -1)
+
+    def embed_crops(self, crops: list[npt.NDArray[np.uint8]]) -> npt.NDArray[np.float32]:
+        """BGR crops of any size -> float32 [N, D] with unit L2 rows."""
+        out = np.zeros((len(crops), getattr(self, "dim", 0)), np.float32)
+        for start in range(0, len(crops), self.batch_size):
+            chunk = crops[start : start + self.batch_size]
+            batch = np.empty((len(chunk), self.height, self.width, 3), np.uint8)
+            for i, crop in enumerate(chunk):
+                batch[i] = cv2.resize(
+                    crop, (self.width, self.height), interpolation=cv2.INTER_LINEAR
+                )
+            out[start : start + len(chunk)] = self._run(batch)
+        norms = np.linalg.norm(out, axis=1, keepdims=True)
+        return (out / np.maximum(norms, 1e-12)).astype(np.float32)
+
+    def embed(
+        self, frame: npt.NDArray[np.uint8], dets: Detections, features: str = "segmented"
+    ) -> npt.NDArray[np.float32]:
+        """Embeddings of each detection's crop; ``features`` as in densepeds.segment.FEATURES."""
+        check_frame(frame)
+        if len(dets) == 0:
+            return np.zeros((0, self.dim), np.float32)
+        return self.embed_crops(crops_for(frame, dets, features))
