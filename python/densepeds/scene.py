@@ -49,7 +49,7 @@ class SceneConfig:
     group_density: float = 3.2  # people per m^2 when a group is formed
     region: tuple[float, float, float, float] = (-4.0, 4.0, 4.5, 12.0)  # x0, x1, y0, y1 metres
     speed: tuple[float, float] = (0.9, 1.3)  # m/s
-    miss_visibility: float = 0.3  # below this visible fraction a person is never detected
+    miss_visibility: float = 0.1  # below this visible fraction a person is never detected
     false_positives: float = 0.7  # mean per frame
     box_jitter: float = 0.04  # standard deviation, as a fraction of the box size
 
@@ -298,8 +298,8 @@ class Scene(FrameSource):
                 gt.append(
                     [k, i + 1, *person.box[:2], *(person.box[2:] - person.box[:2]), 1, 1, vis]
                 )
-                # Detection probability rises from 0 at miss_visibility to 0.97 when fully seen.
-                p_det = 0.97 * np.clip((vis - cfg.miss_visibility) / 0.35, 0, 1)
+                # Detection probability rises from 0 at miss_visibility to 0.97 a quarter higher.
+                p_det = 0.97 * np.clip((vis - cfg.miss_visibility) / 0.25, 0, 1)
                 if rng.random() >= p_det:
                     continue
                 size = person.box[2:] - person.box[:2]

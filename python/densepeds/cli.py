@@ -1,0 +1,332 @@
+"""Command line: ``python -m densepeds run|eval|ablate|scene``.
+
+User mistakes (missing files, bad option values, unreadable video, malformed det files, model
+mismatches) print one line to stderr and exit 2; there is no traceback for them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, NoReturn
+
+from densepeds.errors import DensePedsError, ParameterError
+from densepeds.pipeline import DETECTORS, FEATURES, MOTIONS
+
+EXIT_USAGE = 2
+COMMANDS = ("run", "eval", "ablate", "scene")
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that reports a bad command line in one line (no usage block)."""
+
+    def error(self, message: str) -> NoReturn:
+        sys.stderr.write(f"{self.prog}: error: {message} (see --help)\n")
+        sys.exit(EXIT_USAGE)
+
+
+def _tracker_param(text: str) -> tuple[str, Any]:
+    key, sep, raw = text.partition("=")
+    if not sep or not key.isidentifier():
+        raise argparse.ArgumentTypeError(f"{text!r}: expected KEY=VALUE")
+    value: Any = raw
+    low = raw.lower()
+    if low in ("true", "false"):
+        value = low == "true"
+    else:
+        for kind in (int, float):
+            try:
+                value = kind(raw)
+                break
+            except ValueError:
+                pass
+    return key, value
+
+
+def _csv_choices(allowed: tuple[str, ...]) -> Any:
+    def parse(text: str) -> list[str]:
+        items = [t.strip() for t in text.split(",") if t.strip()]
+        bad = [t for t in items if t not in allowed]
+        if bad or not items:
+            raise argparse.ArgumentTypeError(
+                f"{text!r}: expected a comma-separated subset of {','.join(allowed)}"
+            )
+        return items
+
+    return parse
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="densepeds", description="Pedestrian tracking in dense crowds.")
+    sub = parser.add_subparsers(dest="command", parser_class=_Parser)
+
+    run = sub.add_parser(
+        "run",
+        help="track a video, image folder or MOTChallenge sequence (no INPUT: the built-in scene)",
+        description="Track people. With no INPUT, tracks the built-in dense-crowd scene and "
+        "prints its metrics.",
+    )
+    run.add_argument("input", nargs="?", help="video file, image folder or sequence folder")
+    run.add_argument("--detections", metavar="FILE", help="MOTChallenge det.txt to track from")
+    run.add_argument("--detector", choices=DETECTORS, help="detect people in the frames")
+    run.add_argument("--detector-model", metavar="PATH", help="detector ONNX model file")
+    run.add_argument("--reid-model", metavar="PATH", help="re-ID ONNX model file")
+    run.add_argument("--motion", choices=MOTIONS, default="frvo", help="motion model")
+    run.add_argument(
+        "--features",
+        choices=FEATURES,
+        help="appearance features (default: segmented where there are frames, else none)",
+    )
+    run.add_argument("--frames", metavar="A:B", help="frame range, 1-based and inclusive")
+    run.add_argument("--out", metavar="TRACKS.txt", type=Path, help="tracks output file")
+    run.add_argument("--video", metavar="OUT.mp4", type=Path, help="annotated video output")
+    run.add_argument(
+        "--param",
+        metavar="KEY=VALUE",
+        type=_tracker_param,
+        action="append",
+        default=[],
+        help="tracker parameter (repeatable)",
+    )
+    run.add_argument("--seed", type=int, default=0, help="built-in scene: random seed")
+    run.add_argument("--scene-frames", type=int, default=150, help="built-in scene: frames")
+    run.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+
+    ev = sub.add_parser("eval", help="HOTA, MOTA, IDF1, ... of tracks against ground truth")
+    ev.add_argument("--gt", nargs="+", required=True, metavar="SEQ_DIR", type=Path)
+    ev.add_argument(
+        "--tracks",
+        required=True,
+        metavar="PATH",
+        type=Path,
+        help="a tracks file (one sequence) or a folder of SEQNAME.txt",
+    )
+    ev.add_argument("--format", choices=("md", "csv", "json"), default="md")
+
+    ab = sub.add_parser(
+        "ablate",
+        help="motion models x feature kinds, one table like the paper's Table III",
+        description="Rerun the ablation on the sequences (no SEQ_DIR: the built-in scene).",
+    )
+    ab.add_argument("seqs", nargs="*", metavar="SEQ_DIR", type=Path)
+    ab.add_argument(
+        "--motion",
+        type=_csv_choices(MOTIONS),
+        default=list(MOTIONS),
+        help="comma-separated motion models (default: all)",
+    )
+    ab.add_argument(
+        "--features",
+        type=_csv_choices(FEATURES),
+        help="comma-separated feature kinds (default: all the inputs allow)",
+    )
+    ab.add_argument(
+        "--detector", choices=DETECTORS, help="detect in the frames instead of reading det/det.txt"
+    )
+    ab.add_argument("--detector-model", metavar="PATH")
+    ab.add_argument("--reid-model", metavar="PATH")
+    ab.add_argument("--frames", metavar="A:B", help="frame range (gt is cut to match)")
+    ab.add_argument("--format", choices=("md", "csv", "json"), default="md")
+    ab.add_argument(
+        "--param", metavar="KEY=VALUE", type=_tracker_param, action="append", default=[]
+    )
+    ab.add_argument("--quiet", "-q", action="store_true")
+
+    sc = sub.add_parser("scene", help="write the built-in scene as a MOTChallenge sequence")
+    sc.add_argument("out_dir", type=Path)
+    sc.add_argument("--seed", type=int, default=0)
+    sc.add_argument("--frames", type=int, default=150)
+    sc.add_argument("--no-images", action="store_true", help="only seqinfo, gt and det")
+    return parser
+
+
+# --- run -------------------------------------------------------------------------------------
+
+
+def _progress(total: int | None, quiet: bool, desc: str) -> Any:
+    from tqdm import tqdm
+
+    return tqdm(
+        total=total,
+        desc=desc,
+        unit="frame",
+        file=sys.stderr,
+        leave=False,
+        disable=quiet or not sys.stderr.isatty(),
+        dynamic_ncols=True,
+    )
+
+
+def _track_source(args: argparse.Namespace, pipe: Any, src: Any, out: Path) -> tuple[int, int]:
+    """Run the pipeline over a source, write tracks and the optional video; (frames, ids)."""
+    from densepeds.motio import write_tracks
+    from densepeds.pipeline import track_rows
+    from densepeds.video import AnnotatedVideoWriter, parse_frame_range
+
+    rng = parse_frame_range(args.frames)
+    total = None
+    if src.length is not None:
+        total = max(0, (rng.clip(src.length).last or 0) - rng.first + 1)
+    writer = AnnotatedVideoWriter(args.video, fps=src.fps) if args.video else None
+    rows: list[tuple[float, ...]] = []
+    ids: set[int] = set()
+    frames = 0
+    bar = _progress(total, args.quiet, src.name)
+    try:
+        for res in pipe.run_frames(src, rng, args.detections):
+            with pipe.times.stage("output"):
+                rows.extend(track_rows(res.frame_no, res.tracks))
+                ids.update(res.tracks.ids.tolist())
+                if writer is not None:
+                    writer.write(res.image, res.tracks.ids, res.tracks.boxes, size=src.size)
+            frames += 1
+            bar.update(1)
+    except BaseException:
+        if writer is not None:
+            writer.abort()
+        raise
+    finally:
+        bar.close()
+    with pipe.times.stage("output"):
+        write_tracks(out, rows)
+        if writer is not None:
+            writer.close()
+    if frames == 0:
+        raise ParameterError(f"{src.name}: no frames in range {args.frames or 'all'}")
+    return frames, len(ids)
+
+
+def _summary(name: str, frames: int, n_ids: int, out: Path, pipe: Any, video: Path | None) -> str:
+    t = pipe.times
+    extra = f" and {video}" if video else ""
+    return (
+        f"{name}: {frames} frames, {n_ids} tracks -> {out}{extra}; {t.fps:.1f} fps "
+        f"({t.breakdown()})"
+    )
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from densepeds.pipeline import Pipeline
+    from densepeds.video import SequenceSource, open_source
+
+    if args.input is None:
+        return _run_scene(args)
+    src = open_source(args.input)
+    has_images = not isinstance(src, SequenceSource) or src.has_images
+    has_own_dets = isinstance(src, SequenceSource) and src.det_path is not None
+    detector = args.detector
+    if detector is None and args.detections is None and not has_own_dets:
+        if not has_images:
+            raise ParameterError(f"{args.input}: no images and no det/det.txt to track from")
+        detector = "yoloseg"
+    features = args.features or ("segmented" if has_images else "none")
+    if features != "none" and not has_images:
+        raise ParameterError(
+            f"--features {features} needs frames, and {args.input} has none (use --features none)"
+        )
+    pipe = Pipeline(
+        detector,
+        reid=args.reid_model,
+        motion=args.motion,
+        features=features,
+        detector_model=args.detector_model,
+        **dict(args.param),
+    )
+    out = args.out or Path("out") / f"{src.name}.txt"
+    frames, n_ids = _track_source(args, pipe, src, out)
+    print(_summary(src.name, frames, n_ids, out, pipe, args.video))
+    return 0
+
+
+def _run_scene(args: argparse.Namespace) -> int:
+    from densepeds.evaluate import evaluate, format_results
+    from densepeds.pipeline import Pipeline
+    from densepeds.scene import make_scene
+
+    if args.detections or args.detector:
+        raise ParameterError("the built-in scene has its own detections; give an INPUT instead")
+    features = args.features or "segmented"
+    scene = make_scene(seed=args.seed, frames=args.scene_frames)
+    reid: Any = args.reid_model or scene.embedder()
+    pipe = Pipeline(None, reid=reid, motion=args.motion, features=features, **dict(args.param))
+    with tempfile.TemporaryDirectory(prefix="densepeds-scene-") as tmp:
+        seq = scene.write(tmp, images=False)
+        out = args.out or Path(tmp) / f"{scene.name}.txt"
+        frames, n_ids = _track_source(args, pipe, scene, out)
+        result = evaluate([seq], out)
+    print(
+        f"Built-in scene (seed {args.seed}): {scene.positions.shape[1]} people, "
+        f"{scene.local_density():.1f} people/m^2 around each, motion {args.motion}, "
+        f"features {features}"
+    )
+    print(format_results(result, "md"))
+    shown = out if args.out else Path("(temporary)")
+    print(_summary(scene.name, frames, n_ids, shown, pipe, args.video))
+    return 0
+
+
+# --- eval, ablate, scene -------------------------------------------------------------------------
+
+
+def _cmd_eval(args: argparse.Namespace) -> int:
+    from densepeds.evaluate import evaluate, format_results
+
+    result = evaluate(list(args.gt), args.tracks)
+    print(format_results(result, args.format))
+    return 0
+
+
+def _cmd_ablate(args: argparse.Namespace) -> int:
+    from densepeds.ablate import format_ablation, run_ablation
+
+    result = run_ablation(
+        list(args.seqs),
+        motions=args.motion,
+        features=args.features,
+        frames=args.frames,
+        detector=args.detector,
+        detector_model=args.detector_model,
+        reid_model=args.reid_model,
+        tracker_params=dict(args.param),
+        quiet=args.quiet,
+    )
+    print(format_ablation(result, args.format))
+    return 0
+
+
+def _cmd_scene(args: argparse.Namespace) -> int:
+    from densepeds.scene import make_scene
+
+    scene = make_scene(seed=args.seed, frames=args.frames)
+    seq = scene.write(args.out_dir, images=not args.no_images)
+    print(f"wrote {seq} ({args.frames} frames, {scene.positions.shape[1]} people)")
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args_list = list(sys.argv[1:] if argv is None else argv)
+    if not args_list or (args_list[0] not in COMMANDS and args_list[0] not in ("-h", "--help")):
+        args_list.insert(0, "run")  # `densepeds [INPUT]` means `densepeds run [INPUT]`
+    args = build_parser().parse_args(args_list)
+    handlers = {"run": _cmd_run, "eval": _cmd_eval, "ablate": _cmd_ablate, "scene": _cmd_scene}
+    try:
+        return handlers[args.command](args)
+    except DensePedsError as err:
+        sys.stderr.write(f"densepeds {args.command}: error: {_one_line(err)}\n")
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        sys.stderr.write("densepeds: interrupted\n")
+        return 130
+    except BrokenPipeError:
+        return 1
+
+
+def _one_line(err: BaseException) -> str:
+    return " ".join(str(err).split()) or type(err).__name__
+
+
+if __name__ == "__main__":
+    sys.exit(main())
