@@ -143,3 +143,46 @@ class ReID:
         if len(dets) == 0:
             return np.zeros((0, self.dim), np.float32)
         return self.embed_crops(crops_for(frame, dets, features))
+
+
+@dataclass(frozen=True)
+class Separation:
+    """How well embeddings tell people apart between two frames."""
+
+    people: int  # people present in both frames
+    nearest_correct: float  # fraction whose nearest embedding in the other frame is themselves
+    p10_different: float  # 10th percentile of cosine distance between different people
+
+
+def separation(
+    emb_a: npt.NDArray[np.float32],
+    ids_a: npt.ArrayLike,
+    emb_b: npt.NDArray[np.float32],
+    ids_b: npt.ArrayLike,
+) -> tuple[int, int, npt.NDArray[np.float64]]:
+    """(people in both, of whom nearest is self, distances between different people).
+
+    Person p counts as correct when d(p_a, p_b) < d(p_a, q_b) for every other q in frame b.
+    """
+    a_ids = np.asarray(ids_a)
+    b_ids = np.asarray(ids_b)
+    dist = 1.0 - emb_a.astype(np.float64) @ emb_b.astype(np.float64).T
+    same = a_ids[:, None] == b_ids[None, :]
+    correct = 0
+    people = 0
+    for i in range(len(a_ids)):
+        j = np.flatnonzero(same[i])
+        if len(j) != 1:
+            continue
+        people += 1
+        others = np.delete(dist[i], j[0])
+        correct += int(len(others) == 0 or dist[i, j[0]] < others.min())
+    return people, correct, dist[~same]
+
+
+def summarise(results: list[tuple[int, int, npt.NDArray[np.float64]]]) -> Separation:
+    people = sum(r[0] for r in results)
+    correct = sum(r[1] for r in results)
+    diffs = np.concatenate([r[2] for r in results]) if results else np.zeros(0)
+    p10 = float(np.percentile(diffs, 10)) if len(diffs) else float("nan")
+    return Separation(people, correct / max(people, 1), p10)

@@ -116,3 +116,27 @@ def crops_for(frame: Image, dets: Detections, features: str = "segmented") -> li
         )
         for i, b in enumerate(dets.boxes)
     ]
+
+
+def masks_for_boxes(
+    dets: Detections, boxes: npt.ArrayLike, min_iou: float = 0.5
+) -> tuple[Detections, npt.NDArray[np.intp]]:
+    """Give other boxes (e.g. ground truth) the masks of the detections matching them.
+
+    Boxes are matched one-to-one to ``dets`` by IoU (Hungarian, at least ``min_iou``); returns
+    the matched boxes carrying their detection's mask, and the indices of those boxes.
+    """
+    from scipy.optimize import linear_sum_assignment
+
+    from densepeds.detect.tiling import iou_matrix
+
+    target = np.asarray(boxes, np.float64).reshape(-1, 4)
+    if len(target) == 0 or len(dets) == 0 or dets.masks is None or dets.mask_boxes is None:
+        return Detections.empty(), np.zeros(0, np.intp)
+    iou = iou_matrix(target, dets.boxes.astype(np.float64))
+    rows, cols = linear_sum_assignment(-iou)
+    good = iou[rows, cols] >= min_iou
+    rows, cols = rows[good], cols[good]
+    masks = [dets.masks[c] for c in cols]
+    out = Detections(target[rows], dets.scores[cols], masks, dets.mask_boxes[cols])
+    return out, rows.astype(np.intp)
