@@ -287,7 +287,7 @@ class Scene(FrameSource):
         dets: dict[int, Detections] = {}
         for k in range(1, cfg.frames + 1):
             _, label, people = self.render(k)
-            boxes, scores, masks, mboxes = [], [], [], []
+            boxes, scores, masks, mboxes, sources = [], [], [], [], []
             for i, person in people:
                 x1, y1, x2, y2 = np.round(person.box).astype(int)
                 w, h = max(x2 - x1, 2), max(y2 - y1, 4)
@@ -313,6 +313,7 @@ class Scene(FrameSource):
                 scores.append(float(np.clip(0.35 + 0.6 * vis + rng.normal(0, 0.05), 0.05, 1.0)))
                 masks.append(label[mb[1] : mb[3], mb[0] : mb[2]] == i)
                 mboxes.append(mb)
+                sources.append(i + 1)
             for _ in range(rng.poisson(cfg.false_positives)):
                 box = self._false_positive(rng)
                 mb = self._mask_box(box)
@@ -332,8 +333,13 @@ class Scene(FrameSource):
                 scores.append(float(rng.uniform(0.1, 0.5)))
                 masks.append(m.astype(bool))
                 mboxes.append(mb)
+                sources.append(-1)
             if boxes:
-                dets[k] = Detections(np.array(boxes), np.array(scores), masks, np.array(mboxes))
+                # extra["gt_id"]: the person each detection came from (-1: false positive).
+                extra = {"gt_id": np.array(sources, np.int64)}
+                dets[k] = Detections(
+                    np.array(boxes), np.array(scores), masks, np.array(mboxes), extra
+                )
         return np.array(gt, np.float64).reshape(-1, 9), dets
 
     def _mask_box(self, box: FloatArray) -> npt.NDArray[np.int32]:
