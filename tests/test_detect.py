@@ -1,0 +1,248 @@
+"""Detectors: tiling and merging, the dynamic-batch rewrite, and recall on real crowd frames."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from conftest import shared_path
+from densepeds.detect import make_detector
+from densepeds.detect.onnxutil import load_model, make_session, with_dynamic_batch
+from densepeds.detect.precomputed import PrecomputedDetector
+from densepeds.detect.tiling import (
+    auto_grid,
+    iou_matrix,
+    make_tiles,
+    merge_views,
+    nms,
+    parse_grid,
+)
+from densepeds.detect.yoloseg import YoloSegDetector
+from densepeds.errors import InputError, ModelError, ParameterError
+from densepeds.motio import read_gt
+from densepeds.types import Detections
+from scipy.optimize import linear_sum_assignment
+
+YOLO = "yolov8n-seg-320-int8.onnx"
+
+
+# --- tiling and merging (no data needed) -------------------------------------------------------
+def test_auto_grid_and_tiles_cover_the_frame() -> None:
+    assert auto_grid(960, 540, 320) == (3, 2)
+    assert auto_grid(1920, 1080, 320) == (3, 2)
+    assert auto_grid(320, 240, 320) == (1, 1)
+    tiles = make_tiles(960, 540, 3, 2)
+    covered = np.zeros((540, 960), int)
+    for t in tiles:
+        covered[t.y0 : t.y1, t.x0 : t.x1] += 1
+    assert covered.min() >= 1 and covered.max() >= 2  # all covered, with overlaps
+    assert tiles[0].interior == (False, False, True, True)
+    assert tiles[4].interior == (True, True, True, False)
+
+
+def test_parse_grid() -> None:
+    assert parse_grid("4x3", 100, 100, 320) == (4, 3)
+    assert parse_grid((2, 1), 100, 100, 320) == (2, 1)
+    assert parse_grid(None, 100, 100, 320) == (1, 1)
+    for bad in ("lots", (0, 2), (2, 2, 2), 7):
+        with pytest.raises(ParameterError):
+            parse_grid(bad, 100, 100, 320)  # type: ignore[arg-type]
+
+
+def brute_force_nms(boxes: np.ndarray, scores: np.ndarray, thr: float) -> list[int]:
+    order = sorted(range(len(boxes)), key=lambda i: -scores[i])
+    keep: list[int] = []
+    for i in order:
+        ok = True
+        for k in keep:
+            a, b = boxes[i], boxes[k]
+            iw = max(0.0, min(a[2], b[2]) - max(a[0], b[0]))
+            ih = max(0.0, min(a[3], b[3]) - max(a[1], b[1]))
+            inter = iw * ih
+            union = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - inter
+            if inter / union > thr:
+                ok = False
+                break
+        if ok:
+            keep.append(i)
+    return keep
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_nms_matches_brute_force(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    xy = rng.uniform(0, 100, (60, 2))
+    boxes = np.c_[xy, xy + rng.uniform(5, 40, (60, 2))]
+    scores = rng.random(60)
+    assert nms(boxes, scores, 0.4).tolist() == brute_force_nms(boxes, scores, 0.4)
+
+
+def test_merge_drops_cut_box_seen_whole_elsewhere() -> None:
+    boxes = np.array(
+        [
+            [90, 10, 100, 60],  # cut by tile 0's right edge (x=100)
+            [80, 10, 110, 60],  # the same person whole in tile 1
+            [20, 10, 40, 60],  # someone else, whole
+            [60, 10, 70, 60],  # cut, but no other view sees it: kept
+        ],
+        float,
+    )
+    scores = np.array([0.95, 0.5, 0.8, 0.6])
+    view = np.array([0, 1, 0, 0])
+    cut = np.array([True, False, False, True])
+    keep = merge_views(boxes, scores, view, cut, 0.6)
+    assert sorted(keep.tolist()) == [1, 2, 3]
+    # The same pair within one view is left to NMS (IoU 1/3 < 0.6: both kept).
+    assert sorted(merge_views(boxes[:2], scores[:2], np.array([0, 0]), cut[:2], 0.6)) == [0, 1]
+
+
+# --- real model and data -----------------------------------------------------------------------
+def recall(dets: Detections, gt: np.ndarray) -> tuple[int, int]:
+    """Ground-truth boxes matched one-to-one at IoU >= 0.5."""
+    if len(gt) == 0 or len(dets) == 0:
+        return 0, len(gt)
+    iou = iou_matrix(gt, dets.boxes.astype(np.float64))
+    rows, cols = linear_sum_assignment(-iou)
+    return int((iou[rows, cols] >= 0.5).sum()), len(gt)
+
+
+def visible_gt(gt: np.ndarray, frame: int) -> np.ndarray:
+    """MOT17/20 pedestrians (flag 1, class 1) with visibility >= 0.5, as x1 y1 x2 y2."""
+    sel = gt[(gt[:, 0] == frame) & (gt[:, 6] == 1) & (gt[:, 7] == 1) & (gt[:, 8] >= 0.5)]
+    return np.c_[sel[:, 2:4], sel[:, 2:4] + sel[:, 4:6]]
+
+
+def video_frames(path: Path, wanted: list[int]) -> dict[int, np.ndarray]:
+    """Frames by 1-based number, read sequentially (seeking is not exact for every codec)."""
+    cap = cv2.VideoCapture(str(path))
+    out: dict[int, np.ndarray] = {}
+    number = 0
+    while len(out) < len(wanted):
+        ok, frame = cap.read()
+        if not ok:
+            raise AssertionError(f"{path} ended at frame {number}")
+        number += 1
+        if number in wanted:
+            out[number] = frame
+    cap.release()
+    return out
+
+
+@pytest.fixture(scope="module")
+def yolo() -> YoloSegDetector:
+    det = make_detector("yoloseg", shared_path("models", YOLO), threads=2)
+    assert isinstance(det, YoloSegDetector)
+    return det
+
+
+@pytest.fixture(scope="module")
+def mot20_frames() -> dict[int, np.ndarray]:
+    return video_frames(
+        shared_path("data", "MOT20-01-dev", "MOT20-01-raw.mp4"), [1, 50, 100, 150, 200]
+    )
+
+
+def assert_masks_inside_boxes(dets: Detections, width: int, height: int) -> None:
+    assert dets.masks is not None and dets.mask_boxes is not None
+    for box, mask, mb in zip(dets.boxes, dets.masks, dets.mask_boxes, strict=True):
+        x0, y0, x1, y1 = mb
+        assert 0 <= x0 < x1 <= width and 0 <= y0 < y1 <= height
+        assert mask.shape == (y1 - y0, x1 - x0) and mask.dtype == bool
+        # The mask's region is the box rounded outwards: every mask pixel lies in the box.
+        assert x0 >= np.floor(box[0]) and x1 <= np.ceil(box[2])
+        assert y0 >= np.floor(box[1]) and y1 <= np.ceil(box[3])
+    areas = [m.mean() for m in dets.masks]
+    assert np.median(areas) > 0.2  # people, not empty masks
+
+
+def test_dynamic_batch_copy_matches_per_tile_calls() -> None:
+    path = shared_path("models", YOLO)
+    model = load_model(path)
+    fixed = make_session(model, 2)
+    batched = make_session(with_dynamic_batch(model), 2)
+    rng = np.random.default_rng(0)
+    x = rng.random((3, 320, 320, 3), dtype=np.float32)
+    name = fixed.get_inputs()[0].name
+    together = batched.run(None, {name: x})
+    for i in range(3):
+        alone = fixed.run(None, {name: x[i : i + 1]})
+        for a, b in zip(alone, together, strict=True):
+            np.testing.assert_allclose(a[0], b[i], rtol=1e-5, atol=1e-5)
+
+
+def test_batched_views_equal_per_view_calls(yolo: YoloSegDetector, mot20_frames) -> None:
+    frame = mot20_frames[100]
+    one_call = yolo(frame)
+    yolo.batch_views = False
+    try:
+        per_view = yolo(frame)
+    finally:
+        yolo.batch_views = True
+    np.testing.assert_allclose(one_call.boxes, per_view.boxes, atol=1e-3)
+    assert one_call.masks is not None and per_view.masks is not None
+    assert all(np.array_equal(a, b) for a, b in zip(one_call.masks, per_view.masks, strict=True))
+
+
+def test_mot17_tiled_recall_and_masks(yolo: YoloSegDetector) -> None:
+    frames_dir = shared_path("data", "MOT17-02-FRCNN", "frames")
+    gt = read_gt(shared_path("data", "MOT17-02-FRCNN", "gt", "gt.txt"))
+    found = total = 0
+    for k in range(1, 5):
+        frame = cv2.imread(str(frames_dir / f"{k:06d}.jpg"))
+        dets = yolo(frame)
+        assert_masks_inside_boxes(dets, frame.shape[1], frame.shape[0])
+        a, b = recall(dets, visible_gt(gt, k))
+        found, total = found + a, total + b
+    print(f"MOT17-02 tiled recall {found}/{total}")
+    assert total > 30 and found / total >= 0.6
+
+
+def test_mot20_tiled_recall_beats_one_pass(yolo: YoloSegDetector, mot20_frames) -> None:
+    gt = read_gt(shared_path("data", "MOT20-01-dev", "gt", "gt.txt"))
+    tiled = one_pass = total = 0
+    for k, frame in mot20_frames.items():
+        truth = visible_gt(gt, k)
+        dets = yolo(frame)
+        assert_masks_inside_boxes(dets, 960, 540)
+        tiled += recall(dets, truth)[0]
+        yolo.tiles = None
+        try:
+            one_pass += recall(yolo(frame), truth)[0]
+        finally:
+            yolo.tiles = "auto"
+        total += len(truth)
+    print(f"MOT20-01 recall tiled {tiled}/{total}, one pass {one_pass}/{total}")
+    assert total > 50
+    assert tiled / total >= 0.6
+    assert one_pass / total < 0.55 and tiled > one_pass + 0.15 * total
+
+
+def test_bad_frames_and_models(yolo: YoloSegDetector, tmp_path: Path) -> None:
+    with pytest.raises(InputError):
+        yolo(np.zeros((10, 10), np.uint8))
+    with pytest.raises(InputError):
+        yolo(np.zeros((10, 10, 3), np.float32))  # type: ignore[arg-type]
+    with pytest.raises(ParameterError):
+        make_detector("yolo9000")
+    not_onnx = tmp_path / "x.onnx"
+    not_onnx.write_bytes(b"not a model")
+    with pytest.raises(ModelError):
+        make_detector("yoloseg", not_onnx)
+    with pytest.raises(ModelError, match="YOLOv8"):
+        make_detector("yoloseg", shared_path("models", "osnet_x0_25_msmt17.onnx"))
+
+
+def test_precomputed_detector_reads_det_file() -> None:
+    path = shared_path("data", "PETS09-S2L1-dev", "det", "det.txt")
+    rows = np.loadtxt(path, delimiter=",")
+    det = PrecomputedDetector(path)
+    first = det(np.zeros((4, 4, 3), np.uint8))
+    second = det()
+    assert len(first) == int((rows[:, 0] == 1).sum())
+    assert len(second) == int((rows[:, 0] == 2).sum())
+    assert first.masks is None
+    np.testing.assert_allclose(first.boxes[0], [500, 158, 530.979, 228.299], rtol=1e-5)
+    assert first.scores[0] == pytest.approx(93.673)  # MOT15 scores keep their range
+    assert len(det(frame_number=10**6)) == 0
