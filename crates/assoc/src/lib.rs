@@ -1,5 +1,14 @@
 //! Association for DensePeds: cost matrices (IoU, cosine), optimal assignment, track bookkeeping
 //! and the online [`tracker`].
 
+pub mod cost;
 pub mod error;
+pub mod lap;
+pub mod params;
+mod track;
+pub mod tracker;
+
 pub use error::TrackError;
+pub use lap::{linear_sum_assignment, Edge, LapWorkspace, SparseMatcher};
+pub use params::{ParamKind, ParamValue, TrackerParams};
+pub use tracker::{Embeddings, TrackOutput, Tracker};

@@ -1,0 +1,119 @@
+//! Pairwise costs between tracks and detections: IoU, cosine distance and centre gating.
+//!
+//! Boxes are `[x1, y1, x2, y2]` in pixels with `x2 >= x1` and `y2 >= y1`.
+
+/// An axis-aligned box `[x1, y1, x2, y2]`.
+pub type BBox = [f64; 4];
+
+/// Intersection over union; 0 when the union is empty (two zero-area boxes).
+#[inline]
+pub fn iou(a: &BBox, b: &BBox) -> f64 {
+    let iw = (a[2].min(b[2]) - a[0].max(b[0])).max(0.0);
+    let ih = (a[3].min(b[3]) - a[1].max(b[1])).max(0.0);
+    let inter = iw * ih;
+    let union = area(a) + area(b) - inter;
+    if union > 0.0 {
+        inter / union
+    } else {
+        0.0
+    }
+}
+
+#[inline]
+pub fn area(b: &BBox) -> f64 {
+    (b[2] - b[0]) * (b[3] - b[1])
+}
+
+#[inline]
+pub fn centre(b: &BBox) -> [f64; 2] {
+    [0.5 * (b[0] + b[2]), 0.5 * (b[1] + b[3])]
+}
+
+/// Box of size `w x h` centred on `c`.
+#[inline]
+pub fn box_from_centre(c: [f64; 2], w: f64, h: f64) -> BBox {
+    [
+        c[0] - 0.5 * w,
+        c[1] - 0.5 * h,
+        c[0] + 0.5 * w,
+        c[1] + 0.5 * h,
+    ]
+}
+
+/// Row-major `a.len() x b.len()` IoU matrix.
+pub fn iou_matrix(a: &[BBox], b: &[BBox]) -> Vec<f64> {
+    a.iter()
+        .flat_map(|x| b.iter().map(move |y| iou(x, y)))
+        .collect()
+}
+
+/// `1 - a.b / (|a| |b|)`; a zero vector is treated as orthogonal to everything (distance 1).
+pub fn cosine_distance(a: &[f32], b: &[f32]) -> f64 {
+    let (mut dot, mut na, mut nb) = (0.0f64, 0.0f64, 0.0f64);
+    for (&x, &y) in a.iter().zip(b) {
+        let (x, y) = (f64::from(x), f64::from(y));
+        dot += x * y;
+        na += x * x;
+        nb += y * y;
+    }
+    if na > 0.0 && nb > 0.0 {
+        1.0 - dot / (na.sqrt() * nb.sqrt())
+    } else {
+        1.0
+    }
+}
+
+/// Row-major cosine distance matrix between `na` rows of `a` and `nb` rows of `b`, both of
+/// dimension `dim` and stored row-major.
+pub fn cosine_distance_matrix(a: &[f32], b: &[f32], dim: usize) -> Vec<f64> {
+    if dim == 0 {
+        return Vec::new();
+    }
+    a.chunks_exact(dim)
+        .flat_map(|x| b.chunks_exact(dim).map(move |y| cosine_distance(x, y)))
+        .collect()
+}
+
+/// Scales `v` to unit length in place; a zero (or non-finite norm) vector becomes all zeros, so its
+/// dot product with anything is 0 (cosine distance 1).
+pub fn normalise(v: &mut [f32]) {
+    let norm = v
+        .iter()
+        .map(|&x| f64::from(x) * f64::from(x))
+        .sum::<f64>()
+        .sqrt();
+    if norm > 0.0 && norm.is_finite() {
+        let inv = (1.0 / norm) as f32;
+        v.iter_mut().for_each(|x| *x *= inv);
+    } else {
+        v.fill(0.0);
+    }
+}
+
+/// Dot product of two unit vectors accumulated in f32 (the gallery hot loop).
+#[inline]
+pub fn dot(a: &[f32], b: &[f32]) -> f32 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// Checks a flat `[x1, y1, x2, y2]*` array: finite, not inverted. Returns the number of boxes.
+pub fn validate_boxes(flat: &[f64]) -> Result<usize, crate::TrackError> {
+    use crate::TrackError::InvalidInput;
+    if flat.len() % 4 != 0 {
+        return Err(InvalidInput(format!(
+            "boxes must have 4 values each (x1, y1, x2, y2); got {} values",
+            flat.len()
+        )));
+    }
+    for (k, b) in flat.chunks_exact(4).enumerate() {
+        if b.iter().any(|x| !x.is_finite()) {
+            return Err(InvalidInput(format!("box {k} is not finite: {b:?}")));
+        }
+        if b[2] < b[0] || b[3] < b[1] {
+            return Err(InvalidInput(format!(
+                "box {k} is inverted (x2 < x1 or y2 < y1): {b:?}"
+            )));
+        }
+    }
+    Ok(flat.len() / 4)
+}

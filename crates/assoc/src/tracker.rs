@@ -1,0 +1,404 @@
+//! The DensePeds online tracker: per frame, predict every track with the motion model (all live
+//! tracks stepped together, which is where crowd interaction enters), then associate in stages,
+//! each solved optimally:
+//!
+//! 1. appearance: cosine distance to the track's gallery (<= lambda), among detections within rho
+//!    of the predicted centre (only when embeddings are given);
+//! 2. motion: IoU between predicted boxes and the remaining detections (>= `iou_threshold`);
+//! 3. optional ByteTrack-style second pass on low-score detections;
+//! 4. optional OC-SORT-style recovery by the last observed box;
+//!
+//! then update, age and delete tracks and start new ones.
+
+use crate::cost::{centre, iou, normalise, validate_boxes, BBox};
+use crate::lap::{Edge, SparseMatcher};
+use crate::params::TrackerParams;
+use crate::track::Track;
+use crate::TrackError;
+use frvo::{make_model, MotionModel};
+
+/// Embeddings for one frame: `data` holds `N` rows of `dim` values, row-major.
+#[derive(Clone, Copy, Debug)]
+pub struct Embeddings<'a> {
+    pub data: &'a [f32],
+    pub dim: usize,
+}
+
+/// One reported track.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrackOutput {
+    /// Positive id, stable over the track's life, assigned in order of confirmation.
+    pub id: u64,
+    pub bbox: BBox,
+    /// Score of the last matched detection.
+    pub score: f64,
+    /// Index of the detection matched this frame, `None` when the track was not matched.
+    pub det_index: Option<usize>,
+}
+
+/// Online multi-pedestrian tracker. Deterministic: the same inputs give the same ids.
+pub struct Tracker {
+    params: TrackerParams,
+    model: Box<dyn MotionModel>,
+    tracks: Vec<Track>,
+    next_id: u64,
+    frame: u64,
+    emb_dim: Option<usize>,
+    matcher: SparseMatcher,
+}
+
+impl std::fmt::Debug for Tracker {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Tracker")
+            .field("params", &self.params)
+            .field("tracks", &self.tracks.len())
+            .field("frame", &self.frame)
+            .finish()
+    }
+}
+
+/// Detections sorted by centre x, for range queries around a track.
+struct DetIndex {
+    /// `(centre x, detection index)` sorted.
+    by_x: Vec<(f64, usize)>,
+    max_half_w: f64,
+}
+
+impl DetIndex {
+    fn new(boxes: &[BBox], use_det: impl Fn(usize) -> bool) -> Self {
+        let mut by_x: Vec<(f64, usize)> = (0..boxes.len())
+            .filter(|&j| use_det(j))
+            .map(|j| (0.5 * (boxes[j][0] + boxes[j][2]), j))
+            .collect();
+        by_x.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let max_half_w = by_x
+            .iter()
+            .map(|&(_, j)| 0.5 * (boxes[j][2] - boxes[j][0]))
+            .fold(0.0, f64::max);
+        Self { by_x, max_half_w }
+    }
+
+    /// Detections whose centre x lies within `half` of `cx`.
+    fn near(&self, cx: f64, half: f64) -> impl Iterator<Item = usize> + '_ {
+        let lo = self.by_x.partition_point(|&(x, _)| x < cx - half);
+        self.by_x[lo..]
+            .iter()
+            .take_while(move |&&(x, _)| x <= cx + half)
+            .map(|&(_, j)| j)
+    }
+}
+
+impl Tracker {
+    pub fn new(params: TrackerParams) -> Result<Self, TrackError> {
+        params.validate()?;
+        let model = make_model(params.motion, params.motion_params);
+        Ok(Self {
+            params,
+            model,
+            tracks: Vec::new(),
+            next_id: 1,
+            frame: 0,
+            emb_dim: None,
+            matcher: SparseMatcher::default(),
+        })
+    }
+
+    pub fn params(&self) -> &TrackerParams {
+        &self.params
+    }
+
+    /// Forgets all tracks and restarts ids at 1 (parameters are kept).
+    pub fn reset(&mut self) {
+        self.tracks.clear();
+        self.next_id = 1;
+        self.frame = 0;
+        self.emb_dim = None;
+        self.model = make_model(self.params.motion, self.params.motion_params);
+    }
+
+    /// Frames processed since creation or the last reset.
+    pub fn frame_count(&self) -> u64 {
+        self.frame
+    }
+
+    /// Live tracks, tentative ones included.
+    pub fn num_tracks(&self) -> usize {
+        self.tracks.len()
+    }
+
+    fn validate(
+        &self,
+        boxes: &[f64],
+        scores: &[f64],
+        emb: Option<Embeddings<'_>>,
+    ) -> Result<usize, TrackError> {
+        use TrackError::InvalidInput;
+        let n = validate_boxes(boxes)?;
+        if scores.len() != n {
+            return Err(InvalidInput(format!(
+                "{n} boxes but {} scores",
+                scores.len()
+            )));
+        }
+        if let Some(k) = scores.iter().position(|s| s.is_nan()) {
+            return Err(InvalidInput(format!("score {k} is NaN")));
+        }
+        if let Some(e) = emb {
+            if e.dim == 0 {
+                return Err(InvalidInput("embedding dimension must be > 0".into()));
+            }
+            if e.data.len() != n * e.dim {
+                return Err(InvalidInput(format!(
+                    "embeddings have {} values, expected {n} rows of {}",
+                    e.data.len(),
+                    e.dim
+                )));
+            }
+            if let Some(d) = self.emb_dim {
+                if d != e.dim {
+                    return Err(InvalidInput(format!(
+                        "embedding dimension changed from {d} to {} (reset the tracker first)",
+                        e.dim
+                    )));
+                }
+            }
+            if let Some(k) = e.data.iter().position(|x| !x.is_finite()) {
+                return Err(InvalidInput(format!(
+                    "embedding of detection {} is not finite",
+                    k / e.dim
+                )));
+            }
+        }
+        Ok(n)
+    }
+
+    /// Processes one frame. `boxes` is `[x1, y1, x2, y2]` per detection (flat), `scores` one per
+    /// detection (any range). Returns the confirmed tracks matched this frame (plus, with
+    /// `output_lost`, recently lost ones), sorted by id. Bad input is rejected before any state
+    /// changes.
+    pub fn update(
+        &mut self,
+        boxes: &[f64],
+        scores: &[f64],
+        embeddings: Option<Embeddings<'_>>,
+    ) -> Result<Vec<TrackOutput>, TrackError> {
+        let n = self.validate(boxes, scores, embeddings)?;
+        self.frame += 1;
+        let frame = self.frame;
+        let p = self.params.clone();
+        let dets: Vec<BBox> = boxes
+            .chunks_exact(4)
+            .map(|b| [b[0], b[1], b[2], b[3]])
+            .collect();
+        let emb: Option<(Vec<f32>, usize)> = embeddings.map(|e| {
+            let mut data = e.data.to_vec();
+            data.chunks_exact_mut(e.dim).for_each(normalise);
+            (data, e.dim)
+        });
+        if let Some((_, d)) = emb {
+            self.emb_dim = Some(d);
+        }
+        let emb_row = |j: usize| emb.as_ref().map(|(data, d)| &data[j * d..(j + 1) * d]);
+
+        // Predict: all live tracks step together through the motion model.
+        if !self.tracks.is_empty() {
+            let agents: Vec<frvo::Agent> = self.tracks.iter().map(|t| t.agent(&p)).collect();
+            let vels = self.model.step(&agents, 1.0);
+            for (k, t) in self.tracks.iter_mut().enumerate() {
+                let v = vels.get(k).copied().unwrap_or(t.pref_vel);
+                t.set_prediction(v);
+            }
+        }
+
+        let high = |j: usize| scores[j] >= p.det_threshold;
+        let nt = self.tracks.len();
+        let mut track_det: Vec<Option<usize>> = vec![None; nt];
+        let mut det_track: Vec<Option<usize>> = vec![None; n];
+        let index = DetIndex::new(&dets, high);
+        let mut edges: Vec<Edge> = Vec::new();
+
+        // Stage 1: appearance among gated detections.
+        if emb.is_some() {
+            for (i, t) in self.tracks.iter().enumerate() {
+                if !t.has_gallery() {
+                    continue;
+                }
+                let c = t.predicted_centre();
+                let r = p.gate_radius * t.h;
+                for j in index.near(c[0], r) {
+                    if !within(c, &dets[j], r) {
+                        continue;
+                    }
+                    let d = t.appearance_distance(emb_row(j).expect("embeddings present"));
+                    if d <= p.appearance_threshold {
+                        edges.push(Edge {
+                            row: i,
+                            col: j,
+                            cost: d,
+                        });
+                    }
+                }
+            }
+            let pairs = self.matcher.solve(nt, n, &edges, p.appearance_threshold);
+            record(&pairs, &mut track_det, &mut det_track);
+        }
+
+        // Stage 2: IoU of predicted boxes with the remaining high-score detections.
+        let iou_edges = |tracks: &[Track],
+                         track_det: &[Option<usize>],
+                         det_track: &[Option<usize>],
+                         index: &DetIndex,
+                         use_track: &dyn Fn(&Track) -> bool,
+                         track_box: &dyn Fn(&Track) -> BBox,
+                         min_iou: f64,
+                         edges: &mut Vec<Edge>| {
+            edges.clear();
+            for (i, t) in tracks.iter().enumerate() {
+                if track_det[i].is_some() || !use_track(t) {
+                    continue;
+                }
+                let tb = track_box(t);
+                let c = centre(&tb);
+                let r = p.gate_radius * t.h;
+                let half = (0.5 * (tb[2] - tb[0]) + index.max_half_w).min(r);
+                for j in index.near(c[0], half) {
+                    if det_track[j].is_some() || !within(c, &dets[j], r) {
+                        continue;
+                    }
+                    let o = iou(&tb, &dets[j]);
+                    if o > 0.0 && o >= min_iou {
+                        edges.push(Edge {
+                            row: i,
+                            col: j,
+                            cost: 1.0 - o,
+                        });
+                    }
+                }
+            }
+        };
+        iou_edges(
+            &self.tracks,
+            &track_det,
+            &det_track,
+            &index,
+            &|_| true,
+            &|t| t.predicted,
+            p.iou_threshold,
+            &mut edges,
+        );
+        let pairs = self.matcher.solve(nt, n, &edges, 1.0 - p.iou_threshold);
+        record(&pairs, &mut track_det, &mut det_track);
+
+        // Stage 3: low-score detections for tracks seen last frame.
+        if p.second_pass {
+            let low_index = DetIndex::new(&dets, |j| {
+                scores[j] >= p.low_threshold && scores[j] < p.det_threshold
+            });
+            iou_edges(
+                &self.tracks,
+                &track_det,
+                &det_track,
+                &low_index,
+                &|t| t.time_since_update == 0,
+                &|t| t.predicted,
+                p.low_iou_threshold,
+                &mut edges,
+            );
+            let pairs = self.matcher.solve(nt, n, &edges, 1.0 - p.low_iou_threshold);
+            record(&pairs, &mut track_det, &mut det_track);
+        }
+
+        // Stage 4: recovery by the last observed box (lost confirmed tracks).
+        if p.recovery {
+            iou_edges(
+                &self.tracks,
+                &track_det,
+                &det_track,
+                &index,
+                &|t| t.confirmed,
+                &|t| t.last_obs,
+                p.recovery_iou_threshold,
+                &mut edges,
+            );
+            let pairs = self
+                .matcher
+                .solve(nt, n, &edges, 1.0 - p.recovery_iou_threshold);
+            record(&pairs, &mut track_det, &mut det_track);
+        }
+
+        // Update matched tracks, coast the others, drop the dead.
+        for (i, t) in self.tracks.iter_mut().enumerate() {
+            match track_det[i] {
+                Some(j) => {
+                    t.apply_match(j, dets[j], scores[j], frame, emb_row(j), &p);
+                    if !t.confirmed && t.hits >= p.n_init {
+                        t.confirmed = true;
+                        t.id = self.next_id;
+                        self.next_id += 1;
+                    }
+                }
+                None => t.coast(),
+            }
+        }
+        let mut k = 0;
+        self.tracks.retain(|t| {
+            let keep = match track_det[k] {
+                Some(_) => true,
+                None => t.confirmed && t.time_since_update <= p.max_age,
+            };
+            k += 1;
+            keep
+        });
+
+        // New tracks from unmatched high-score detections.
+        for j in 0..n {
+            if det_track[j].is_none() && high(j) && scores[j] >= p.new_track_threshold {
+                let mut t = Track::new(j, dets[j], scores[j], frame, emb_row(j), p.gallery_size);
+                if p.n_init <= 1 {
+                    t.confirmed = true;
+                    t.id = self.next_id;
+                    self.next_id += 1;
+                }
+                self.tracks.push(t);
+                det_track[j] = Some(usize::MAX);
+            }
+        }
+
+        Ok(self.outputs())
+    }
+
+    fn outputs(&self) -> Vec<TrackOutput> {
+        let mut out: Vec<TrackOutput> = self
+            .tracks
+            .iter()
+            .filter(|t| t.confirmed && t.time_since_update <= self.params.output_lost)
+            .map(|t| TrackOutput {
+                id: t.id,
+                bbox: t.bbox,
+                score: t.score,
+                det_index: t.det_index,
+            })
+            .collect();
+        out.sort_by_key(|o| o.id);
+        out
+    }
+}
+
+/// Whether the centre of `b` lies within `r` of `c`.
+#[inline]
+fn within(c: [f64; 2], b: &BBox, r: f64) -> bool {
+    let d = centre(b);
+    let (dx, dy) = (d[0] - c[0], d[1] - c[1]);
+    dx * dx + dy * dy <= r * r
+}
+
+fn record(
+    pairs: &[(usize, usize)],
+    track_det: &mut [Option<usize>],
+    det_track: &mut [Option<usize>],
+) {
+    for &(i, j) in pairs {
+        track_det[i] = Some(j);
+        det_track[j] = Some(i);
+    }
+}

@@ -1,0 +1,280 @@
+//! Tracker behaviour: lifecycle, crossing, appearance stage, options, determinism, bad input.
+
+use assoc::{Embeddings, ParamValue, TrackError, TrackOutput, Tracker, TrackerParams};
+use frvo::MotionKind;
+
+fn cv_params() -> TrackerParams {
+    TrackerParams {
+        motion: MotionKind::ConstantVelocity,
+        ..TrackerParams::default()
+    }
+}
+
+fn bx(cx: f64, cy: f64) -> [f64; 4] {
+    [cx - 20.0, cy - 50.0, cx + 20.0, cy + 50.0]
+}
+
+fn run(t: &mut Tracker, boxes: &[[f64; 4]]) -> Vec<TrackOutput> {
+    let flat: Vec<f64> = boxes.iter().flatten().copied().collect();
+    let scores = vec![1.0; boxes.len()];
+    t.update(&flat, &scores, None).unwrap()
+}
+
+#[test]
+fn tentative_until_n_init_then_deleted_after_max_age() {
+    let mut t = Tracker::new(TrackerParams {
+        n_init: 3,
+        max_age: 2,
+        ..cv_params()
+    })
+    .unwrap();
+    assert!(run(&mut t, &[bx(100.0, 100.0)]).is_empty());
+    assert!(run(&mut t, &[bx(101.0, 100.0)]).is_empty());
+    let out = run(&mut t, &[bx(102.0, 100.0)]);
+    assert_eq!(out.len(), 1);
+    assert_eq!((out[0].id, out[0].det_index), (1, Some(0)));
+    // Unmatched for max_age frames: kept (not reported); one more: deleted.
+    assert!(run(&mut t, &[]).is_empty());
+    assert!(run(&mut t, &[]).is_empty());
+    assert_eq!(t.num_tracks(), 1);
+    assert!(run(&mut t, &[]).is_empty());
+    assert_eq!(t.num_tracks(), 0);
+}
+
+#[test]
+fn lost_track_is_recovered_within_max_age_with_same_id() {
+    let mut t = Tracker::new(TrackerParams {
+        n_init: 1,
+        max_age: 5,
+        ..cv_params()
+    })
+    .unwrap();
+    for k in 0..5 {
+        run(&mut t, &[bx(100.0 + 4.0 * f64::from(k), 100.0)]);
+    }
+    run(&mut t, &[]);
+    run(&mut t, &[]);
+    // The prediction kept moving at 4 px/frame, so the detection at frame 8 still overlaps.
+    let out = run(&mut t, &[bx(100.0 + 4.0 * 7.0, 100.0)]);
+    assert_eq!(out.len(), 1);
+    assert_eq!(out[0].id, 1);
+}
+
+#[test]
+fn unmatched_tentative_track_is_dropped() {
+    let mut t = Tracker::new(cv_params()).unwrap();
+    run(&mut t, &[bx(100.0, 100.0)]);
+    run(&mut t, &[]);
+    assert_eq!(t.num_tracks(), 0);
+}
+
+fn crossing_frames() -> Vec<Vec<[f64; 4]>> {
+    // Two people walking towards each other, boxes overlapping heavily when they cross.
+    (0..60)
+        .map(|k| {
+            let k = f64::from(k);
+            vec![bx(100.0 + 6.0 * k, 200.0), bx(460.0 - 6.0 * k, 215.0)]
+        })
+        .collect()
+}
+
+#[test]
+fn two_crossing_tracks_keep_their_ids_with_constant_velocity() {
+    let mut t = Tracker::new(TrackerParams {
+        n_init: 1,
+        ..cv_params()
+    })
+    .unwrap();
+    for (k, frame) in crossing_frames().iter().enumerate() {
+        let out = run(&mut t, frame);
+        assert_eq!(out.len(), 2, "frame {k}");
+        // Detection 0 is always the left-to-right walker, who got id 1.
+        for o in &out {
+            assert_eq!(o.det_index, Some(o.id as usize - 1), "frame {k}: {out:?}");
+        }
+    }
+}
+
+#[test]
+fn appearance_stage_resolves_a_swap_that_iou_gets_wrong() {
+    // Two people side by side; in frame 3 the detections come in swapped order *and* positions
+    // jump so that IoU alone would swap the ids; embeddings tell them apart.
+    let mut t = Tracker::new(TrackerParams {
+        n_init: 1,
+        gate_radius: 2.0,
+        ..cv_params()
+    })
+    .unwrap();
+    let ea = [1.0f32, 0.0, 0.0];
+    let eb = [0.0f32, 1.0, 0.0];
+    let step = |t: &mut Tracker, boxes: &[[f64; 4]], emb: &[f32]| {
+        let flat: Vec<f64> = boxes.iter().flatten().copied().collect();
+        t.update(
+            &flat,
+            &vec![1.0; boxes.len()],
+            Some(Embeddings { data: emb, dim: 3 }),
+        )
+        .unwrap()
+    };
+    let both = [ea, eb].concat();
+    step(&mut t, &[bx(100.0, 100.0), bx(130.0, 100.0)], &both);
+    step(&mut t, &[bx(100.0, 100.0), bx(130.0, 100.0)], &both);
+    // A moved right to 128, B moved left to 102: IoU favours keeping places, appearance does not.
+    let out = step(&mut t, &[bx(128.0, 100.0), bx(102.0, 100.0)], &both);
+    let id_of = |j: usize| out.iter().find(|o| o.det_index == Some(j)).unwrap().id;
+    assert_eq!((id_of(0), id_of(1)), (1, 2));
+    // Without embeddings the motion-only tracker swaps them (documents why stage 1 exists).
+    let mut m = Tracker::new(TrackerParams {
+        n_init: 1,
+        ..cv_params()
+    })
+    .unwrap();
+    run(&mut m, &[bx(100.0, 100.0), bx(130.0, 100.0)]);
+    run(&mut m, &[bx(100.0, 100.0), bx(130.0, 100.0)]);
+    let out = run(&mut m, &[bx(128.0, 100.0), bx(102.0, 100.0)]);
+    let id_of = |j: usize| out.iter().find(|o| o.det_index == Some(j)).unwrap().id;
+    assert_eq!((id_of(0), id_of(1)), (2, 1));
+}
+
+#[test]
+fn same_input_gives_same_ids() {
+    let frames: Vec<Vec<[f64; 4]>> = (0..40)
+        .map(|k| {
+            (0..30)
+                .filter(|p| (p * 7 + k) % 11 != 0)
+                .map(|p| {
+                    let p = f64::from(p);
+                    let k = f64::from(k);
+                    bx(50.0 * p + 2.0 * k, 100.0 + 30.0 * (p % 3.0) + k)
+                })
+                .collect()
+        })
+        .collect();
+    let run_all = || {
+        let mut t = Tracker::new(TrackerParams::default()).unwrap();
+        frames.iter().map(|f| run(&mut t, f)).collect::<Vec<_>>()
+    };
+    let a = run_all();
+    assert!(a.iter().any(|o| !o.is_empty()));
+    assert_eq!(a, run_all());
+    // reset() restarts ids.
+    let mut t = Tracker::new(TrackerParams::default()).unwrap();
+    let first: Vec<_> = frames.iter().map(|f| run(&mut t, f)).collect();
+    t.reset();
+    let second: Vec<_> = frames.iter().map(|f| run(&mut t, f)).collect();
+    assert_eq!(first, second);
+}
+
+#[test]
+fn second_pass_uses_low_score_detections_only_when_enabled() {
+    let make = |second_pass| {
+        Tracker::new(TrackerParams {
+            n_init: 1,
+            det_threshold: 0.5,
+            second_pass,
+            low_threshold: 0.1,
+            ..cv_params()
+        })
+        .unwrap()
+    };
+    for (second_pass, expect) in [(false, 0usize), (true, 1)] {
+        let mut t = make(second_pass);
+        t.update(&bx(100.0, 100.0), &[0.9], None).unwrap();
+        let out = t.update(&bx(101.0, 100.0), &[0.3], None).unwrap();
+        assert_eq!(out.len(), expect, "second_pass={second_pass}");
+        // A low-score detection never starts a track.
+        assert_eq!(t.num_tracks(), 1);
+    }
+}
+
+#[test]
+fn recovery_rematches_by_last_observation() {
+    // The track moved fast, then stopped while unseen: its prediction overshoots, but the last
+    // observation still overlaps the new detection.
+    let make = |recovery| {
+        Tracker::new(TrackerParams {
+            n_init: 1,
+            recovery,
+            ..cv_params()
+        })
+        .unwrap()
+    };
+    for (recovery, expect_id) in [(false, 2u64), (true, 1)] {
+        let mut t = make(recovery);
+        for k in 0..4 {
+            run(&mut t, &[bx(100.0 + 15.0 * f64::from(k), 100.0)]);
+        }
+        for _ in 0..3 {
+            run(&mut t, &[]);
+        }
+        let out = run(&mut t, &[bx(150.0, 100.0)]);
+        assert_eq!(out[0].id, expect_id, "recovery={recovery}");
+    }
+}
+
+#[test]
+fn bad_input_is_rejected_without_changing_state() {
+    let mut t = Tracker::new(cv_params()).unwrap();
+    let e = |r: Result<Vec<TrackOutput>, TrackError>| {
+        assert!(matches!(r, Err(TrackError::InvalidInput(_))), "{r:?}")
+    };
+    e(t.update(&[0.0, 0.0, 1.0], &[1.0], None));
+    e(t.update(&[0.0, 0.0, 1.0, 1.0], &[1.0, 2.0], None));
+    e(t.update(&[0.0, 0.0, f64::INFINITY, 1.0], &[1.0], None));
+    e(t.update(&[5.0, 0.0, 1.0, 1.0], &[1.0], None));
+    e(t.update(&[0.0, 0.0, 1.0, 1.0], &[f64::NAN], None));
+    let emb = |data: &'static [f32], dim| Some(Embeddings { data, dim });
+    e(t.update(&[0.0, 0.0, 1.0, 1.0], &[1.0], emb(&[1.0, 2.0, 3.0], 2)));
+    e(t.update(&[0.0, 0.0, 1.0, 1.0], &[1.0], emb(&[f32::NAN, 2.0], 2)));
+    e(t.update(&[0.0, 0.0, 1.0, 1.0], &[1.0], emb(&[], 0)));
+    assert_eq!(t.frame_count(), 0);
+    t.update(&[0.0, 0.0, 1.0, 1.0], &[1.0], emb(&[1.0, 2.0], 2))
+        .unwrap();
+    e(t.update(&[0.0, 0.0, 1.0, 1.0], &[1.0], emb(&[1.0, 2.0, 3.0], 3)));
+    // Frames without embeddings are fine after frames with them.
+    t.update(&[0.0, 0.0, 1.0, 1.0], &[1.0], None).unwrap();
+    // Scores have no range: negative and large values are valid.
+    t.update(
+        &[0.0, 0.0, 1.0, 1.0, 3.0, 3.0, 4.0, 4.0],
+        &[-3.5, 93.7],
+        None,
+    )
+    .unwrap();
+}
+
+#[test]
+fn parameters_are_validated_and_settable_by_name() {
+    let bad = |f: fn(&mut TrackerParams)| {
+        let mut p = TrackerParams::default();
+        f(&mut p);
+        assert!(matches!(
+            Tracker::new(p),
+            Err(TrackError::InvalidParameter(_))
+        ));
+    };
+    bad(|p| p.n_init = 0);
+    bad(|p| p.iou_threshold = 1.5);
+    bad(|p| p.appearance_threshold = -0.1);
+    bad(|p| p.gate_radius = 0.0);
+    bad(|p| p.gallery_size = 0);
+    bad(|p| p.det_threshold = f64::NAN);
+    bad(|p| p.size_smoothing = 1.0);
+    bad(|p| p.motion_params.max_speed = -1.0);
+    let mut p = TrackerParams::default();
+    assert!(p.set("nope", ParamValue::Float(1.0)).is_err());
+    assert!(p.set("n_init", ParamValue::Float(1.5)).is_err());
+    assert!(p.set("n_init", ParamValue::Int(-1)).is_err());
+    assert!(p.set("recovery", ParamValue::Int(1)).is_err());
+    p.set("n_init", ParamValue::Int(5)).unwrap();
+    p.set("recovery", ParamValue::Bool(true)).unwrap();
+    p.set("iou_threshold", ParamValue::Int(0)).unwrap();
+    p.set("neighbor_radius", ParamValue::Float(80.0)).unwrap();
+    assert_eq!(p.get("n_init"), Some(ParamValue::Int(5)));
+    assert_eq!(p.get("recovery"), Some(ParamValue::Bool(true)));
+    assert_eq!(p.get("iou_threshold"), Some(ParamValue::Float(0.0)));
+    assert_eq!(p.motion_params.neighbor_radius, 80.0);
+    for name in assoc::params::PARAM_NAMES {
+        let v = p.get(name).unwrap();
+        p.set(name, v).unwrap();
+    }
+}
