@@ -24,7 +24,7 @@ from densepeds.pipeline import FEATURES, MOTIONS, Pipeline, track_rows
 from densepeds.types import Detections
 from densepeds.video import FrameRange, FrameSource, SequenceSource, parse_frame_range
 
-__all__ = ["AblationResult", "format_ablation", "run_ablation"]
+__all__ = ["AblationResult", "cut_gt", "format_ablation", "run_ablation"]
 
 # Table columns: (header, metric key, percent of GT ids?, decimals)
 COLUMNS = (
@@ -68,7 +68,7 @@ class AblationResult:
     rows: list[AblationRow] = field(default_factory=list)
 
 
-def _cut_gt(src: SequenceSource, rng: FrameRange, out_root: Path) -> Path:
+def cut_gt(src: SequenceSource, rng: FrameRange, out_root: Path) -> Path:
     """A copy of the sequence's seqinfo and gt cut to ``rng`` and renumbered from 1."""
     from densepeds.motio import read_gt
 
@@ -210,7 +210,7 @@ def run_ablation(
             for s in sources:
                 r = rng.clip(s.length or 0)
                 dets = None if det_fn is not None else read_detections(s.det_path)  # type: ignore[arg-type]
-                gt_dir = _cut_gt(s, r, tmp / "gt")
+                gt_dir = cut_gt(s, r, tmp / "gt")
                 prepared.append(_prepare(s, gt_dir, r, dets, det_fn, embedder, kinds, quiet))
         result = AblationResult([p.name for p in prepared])
         for motion in motions:
@@ -231,7 +231,7 @@ def run_ablation(
 
 def _cut_gt_scene(scene: Any, rng: FrameRange, root: Path) -> Path:
     seq = scene.write(root, images=False)
-    return _cut_gt(SequenceSource(seq), rng.clip(scene.config.frames), root / "cut")
+    return cut_gt(SequenceSource(seq), rng.clip(scene.config.frames), root / "cut")
 
 
 class _NoTracker:

@@ -160,7 +160,9 @@ def _progress(total: int | None, quiet: bool, desc: str) -> Any:
     )
 
 
-def _track_source(args: argparse.Namespace, pipe: Any, src: Any, out: Path) -> tuple[int, int]:
+def _track_source(
+    args: argparse.Namespace, pipe: Any, src: Any, out: Path, dets: Any = None
+) -> tuple[int, int]:
     """Run the pipeline over a source, write tracks and the optional video; (frames, ids)."""
     from densepeds.motio import write_tracks
     from densepeds.pipeline import track_rows
@@ -176,7 +178,7 @@ def _track_source(args: argparse.Namespace, pipe: Any, src: Any, out: Path) -> t
     frames = 0
     bar = _progress(total, args.quiet, src.name)
     try:
-        for res in pipe.run_frames(src, rng, args.detections):
+        for res in pipe.run_frames(src, rng, dets):
             with pipe.times.stage("output"):
                 rows.extend(track_rows(res.frame_no, res.tracks))
                 ids.update(res.tracks.ids.tolist())
@@ -209,9 +211,11 @@ def _summary(name: str, frames: int, n_ids: int, out: Path, pipe: Any, video: Pa
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    from densepeds.motio import read_detections
     from densepeds.pipeline import Pipeline
-    from densepeds.video import SequenceSource, open_source
+    from densepeds.video import SequenceSource, open_source, parse_frame_range
 
+    parse_frame_range(args.frames)  # a bad range fails before any work
     if args.input is None:
         return _run_scene(args)
     src = open_source(args.input)
@@ -227,6 +231,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise ParameterError(
             f"--features {features} needs frames, and {args.input} has none (use --features none)"
         )
+    # Read the det file and load the models before tracking, so that mistakes surface at once.
+    dets = read_detections(args.detections) if args.detections else None
     pipe = Pipeline(
         detector,
         reid=args.reid_model,
@@ -235,8 +241,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
         detector_model=args.detector_model,
         **dict(args.param),
     )
+    if detector is not None and dets is None:
+        pipe.detector()
+    if features != "none":
+        pipe.reid()
     out = args.out or Path("out") / f"{src.name}.txt"
-    frames, n_ids = _track_source(args, pipe, src, out)
+    frames, n_ids = _track_source(args, pipe, src, out, dets)
     print(_summary(src.name, frames, n_ids, out, pipe, args.video))
     return 0
 

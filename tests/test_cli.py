@@ -1,0 +1,211 @@
+"""The command line end to end: output files and metrics, and one-line errors for mistakes."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import REPO, shared_path
+from densepeds.cli import main
+from densepeds.motio import read_tracks
+
+
+def _run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    rc = main(list(argv))
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+def _one_line_error(rc: int, err: str, *needles: str) -> None:
+    assert rc == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    for needle in needles:
+        assert needle in lines[0], lines[0]
+
+
+def _needs_tracker() -> None:
+    pytest.importorskip("densepeds.tracking", reason="needs densepeds.tracking (engineer assoc)")
+
+
+# --- mistakes: one line on stderr, exit 2 ------------------------------------------------------
+
+
+def test_missing_input(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    rc, _, err = _run(capsys, "run", str(tmp_path / "nope.mp4"))
+    _one_line_error(rc, err, "nope.mp4", "no such file")
+
+
+def test_corrupt_video(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    bad = tmp_path / "broken.avi"
+    bad.write_bytes(b"RIFF" + bytes(range(256)) * 20)
+    rc, _, err = _run(capsys, "run", str(bad))
+    _one_line_error(rc, err, "broken.avi", "cannot decode")
+
+
+def test_unknown_option_values(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "--motion", "teleport"])
+    _, err = capsys.readouterr()
+    _one_line_error(int(exc.value.code or 0), err, "teleport")
+    with pytest.raises(SystemExit) as exc:
+        main(["ablate", "--features", "segmented,colour"])
+    _, err = capsys.readouterr()
+    _one_line_error(int(exc.value.code or 0), err, "colour")
+    rc, _, err = _run(capsys, "run", "--frames", "9:3")
+    _one_line_error(rc, err, "9:3")
+
+
+def test_malformed_det_file(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    seq = shared_path("data", "TUD-Stadtmitte")
+    bad = tmp_path / "det.txt"
+    bad.write_text("1,-1,10,10,5,9,0.9\n2,-1,10,ten,5,9,0.9\n")
+    rc, _, err = _run(capsys, "run", str(seq), "--detections", str(bad))
+    _one_line_error(rc, err, f"{bad}:2")
+
+
+def test_features_need_frames(capsys: pytest.CaptureFixture[str]) -> None:
+    seq = shared_path("data", "TUD-Stadtmitte")
+    rc, _, err = _run(capsys, "run", str(seq), "--features", "segmented")
+    _one_line_error(rc, err, "--features none")
+
+
+def test_model_mismatch(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    _needs_tracker()
+    video = shared_path("data", "PETS09-S2L1-dev", "vtest.avi")
+    fake = tmp_path / "reid.onnx"
+    fake.write_bytes(b"not an onnx model")
+    rc, _, err = _run(
+        capsys, "run", str(video), "--detections", str(REPO / "missing-but-unused.txt")
+    )
+    _one_line_error(rc, err, "missing-but-unused.txt")
+    rc, _, err = _run(capsys, "run", str(video), "--reid-model", str(fake), "--frames", "1:2")
+    _one_line_error(rc, err, "reid.onnx")
+
+
+def test_python_m_prints_no_traceback(tmp_path: Path) -> None:
+    env = dict(os.environ, PYTHONPATH=str(REPO / "python"))
+    proc = subprocess.run(
+        [sys.executable, "-m", "densepeds", "eval", "--gt", str(tmp_path / "x"), "--tracks", "t"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+    )
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr
+    _one_line_error(proc.returncode, proc.stderr, "ground-truth")
+
+
+# --- end to end ---------------------------------------------------------------------------------
+
+
+def test_run_and_eval_from_det_file(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """Motion only from TUD-Stadtmitte's det.txt, then `eval` on the written file."""
+    _needs_tracker()
+    seq = shared_path("data", "TUD-Stadtmitte")
+    out = tmp_path / "tud.txt"
+    rc, stdout, _ = _run(capsys, "run", str(seq), "--out", str(out), "--quiet")
+    assert rc == 0 and "179 frames" in stdout and str(out) in stdout
+    tracks = read_tracks(out)
+    assert len(tracks) > 500
+    assert tracks[:, 0].min() >= 1 and tracks[:, 0].max() <= 179
+    assert len(np.unique(tracks[:, 1])) >= 8
+    rc, stdout, _ = _run(capsys, "eval", "--gt", str(seq), "--tracks", str(out), "--format", "json")
+    assert rc == 0
+    combined = json.loads(stdout)["combined"]
+    assert combined["MOTA"] > 30 and combined["IDF1"] > 30
+    # A frame range keeps MOT numbering.
+    part = tmp_path / "part.txt"
+    assert main(["run", str(seq), "--frames", "50:59", "--out", str(part), "-q"]) == 0
+    frames = read_tracks(part)[:, 0]
+    assert frames.min() >= 50 and frames.max() <= 59
+
+
+def test_pets_video_with_real_models(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """yoloseg + segmented boxes + OSNet + FRVO on the first 25 frames of vtest.avi."""
+    _needs_tracker()
+    seq = shared_path("data", "PETS09-S2L1-dev")
+    shared_path("models", "yolov8n-seg-320-int8.onnx")
+    shared_path("models", "osnet_x0_25_msmt17.onnx")
+    from densepeds.ablate import cut_gt
+    from densepeds.evaluate import evaluate
+    from densepeds.video import FrameRange, SequenceSource
+
+    out, video = tmp_path / "pets.txt", tmp_path / "pets.mp4"
+    rc, stdout, _ = _run(
+        capsys,
+        "run",
+        str(seq / "vtest.avi"),
+        "--detector",
+        "yoloseg",
+        "--frames",
+        "1:25",
+        "--out",
+        str(out),
+        "--video",
+        str(video),
+        "-q",
+    )
+    assert rc == 0 and "25 frames" in stdout
+    assert re.search(r"detection [\d.]+, reid [\d.]+, tracking", stdout)
+    tracks = read_tracks(out)
+    assert set(np.unique(tracks[:, 0])) <= set(range(1, 26))
+    import cv2
+
+    cap = cv2.VideoCapture(str(video))
+    assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == 25
+    cap.release()
+    gt_dir = cut_gt(SequenceSource(seq), FrameRange(1, 25), tmp_path / "gt")
+    combined = evaluate([gt_dir], out).combined
+    assert combined["MOTA"] > 20 and combined["IDF1"] > 30
+
+
+def test_builtin_scene(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """`densepeds run` with no input: the scene, its metrics, tracks and an annotated video."""
+    _needs_tracker()
+    out, video = tmp_path / "scene.txt", tmp_path / "scene.avi"
+    rc, stdout, _ = _run(
+        capsys, "run", "--scene-frames", "60", "--out", str(out), "--video", str(video), "-q"
+    )
+    assert rc == 0 and "people/m^2" in stdout
+    row = next(line for line in stdout.splitlines() if line.startswith("| **COMBINED**"))
+    header = next(line for line in stdout.splitlines() if line.startswith("| sequence"))
+    values = dict(zip(header.strip("| ").split(" | "), row.strip("| ").split(" | "), strict=True))
+    assert float(values["MOTA"]) > 50
+    assert len(read_tracks(out)) > 1000 and video.stat().st_size > 10_000
+
+
+def test_scene_command_writes_a_sequence_that_run_and_eval_accept(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    _needs_tracker()
+    rc, stdout, _ = _run(capsys, "scene", str(tmp_path), "--frames", "30", "--no-images")
+    assert rc == 0
+    seq = tmp_path / "DensePeds-scene-0"
+    out = tmp_path / "t.txt"
+    assert main(["run", str(seq), "--out", str(out), "-q"]) == 0
+    capsys.readouterr()
+    rc, stdout, _ = _run(capsys, "eval", "--gt", str(seq), "--tracks", str(out), "--format", "csv")
+    assert rc == 0
+    header, first, *_ = stdout.splitlines()
+    mota = float(first.split(",")[header.split(",").index("MOTA")])
+    assert mota > 50
+
+
+def test_ablate_on_the_scene(capsys: pytest.CaptureFixture[str]) -> None:
+    _needs_tracker()
+    rc, stdout, _ = _run(
+        capsys, "ablate", "--motion", "cv,frvo", "--features", "segmented,none", "--frames", "1:50"
+    )
+    assert rc == 0
+    rows = [line for line in stdout.splitlines() if line.startswith("| ") and "---" not in line]
+    assert rows[0].startswith("| Motion | Features |") and "MOTA(%)" in rows[0]
+    combos = {tuple(r.strip("| ").split(" | ")[:2]) for r in rows[1:]}
+    assert combos == {("cv", "segmented"), ("cv", "none"), ("frvo", "segmented"), ("frvo", "none")}
