@@ -1,5 +1,44 @@
 """DensePeds: pedestrian tracking in dense crowds."""
 
-from densepeds._core import __version__
+from __future__ import annotations
 
-__all__ = ["__version__"]
+from typing import TYPE_CHECKING, Any
+
+from densepeds._core import __version__
+from densepeds.errors import DensePedsError, DetFileError, InputError, ModelError, ParameterError
+from densepeds.types import Detections
+
+if TYPE_CHECKING:
+    from densepeds.pipeline import Pipeline
+    from densepeds.scene import make_scene
+    from densepeds.tracking import Tracker, Tracks
+
+__all__ = [
+    "DensePedsError",
+    "DetFileError",
+    "Detections",
+    "InputError",
+    "ModelError",
+    "ParameterError",
+    "Pipeline",
+    "Tracker",
+    "Tracks",
+    "__version__",
+    "make_scene",
+]
+
+# Heavier modules (OpenCV, onnxruntime) load on first use, so `import densepeds` stays quick.
+_LAZY = {
+    "Pipeline": "densepeds.pipeline",
+    "Tracker": "densepeds.tracking",
+    "Tracks": "densepeds.tracking",
+    "make_scene": "densepeds.scene",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'densepeds' has no attribute {name!r}")
