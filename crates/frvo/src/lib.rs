@@ -9,7 +9,14 @@
 //! social forces and circular RVO implement it too, for the method's ablation.
 
 pub mod agent;
+pub mod geometry;
+pub mod lp;
+pub mod minkowski;
 pub mod model;
+pub mod models;
+pub mod neighbors;
+pub mod velocity_obstacle;
 
 pub use agent::Agent;
 pub use model::{make_model, ConstantVelocity, MotionKind, MotionModel, MotionParams};
+pub use models::{Footprint, Orca, SocialForce};

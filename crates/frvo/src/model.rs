@@ -1,3 +1,5 @@
+use crate::geometry::MAX_SIDES;
+use crate::models::{Footprint, Orca, SocialForce};
 use crate::Agent;
 use nalgebra::Vector2;
 
@@ -40,8 +42,14 @@ pub struct MotionParams {
     pub time_horizon: f64,
     /// Maximum speed, pixels per frame.
     pub max_speed: f64,
-    /// Sides of the polygon approximating each ellipse.
+    /// Sides of the polygon approximating each ellipse (3 to 32).
     pub polygon_sides: usize,
+    /// Social forces: relaxation time toward the preferred velocity, frames.
+    pub sf_relaxation_time: f64,
+    /// Social forces: repulsion strength A at contact, pixels per frame squared.
+    pub sf_strength: f64,
+    /// Social forces: repulsion range B, pixels.
+    pub sf_range: f64,
 }
 
 impl Default for MotionParams {
@@ -52,6 +60,97 @@ impl Default for MotionParams {
             time_horizon: 5.0,
             max_speed: 50.0,
             polygon_sides: 8,
+            sf_relaxation_time: 2.0,
+            sf_strength: 1.0,
+            sf_range: 10.0,
+        }
+    }
+}
+
+/// Largest finite speed the solver works with (keeps the disc arithmetic finite).
+const SPEED_CAP: f64 = 1e9;
+
+impl MotionParams {
+    /// Every problem with the parameters, for a clear error at an API boundary.
+    pub fn validate(&self) -> Result<(), String> {
+        let mut bad = Vec::new();
+        if self.neighbor_radius.is_nan() || self.neighbor_radius < 0.0 {
+            bad.push(format!(
+                "neighbor_radius must be >= 0, got {}",
+                self.neighbor_radius
+            ));
+        }
+        if !(self.time_horizon.is_finite() && self.time_horizon > 0.0) {
+            bad.push(format!(
+                "time_horizon must be finite and > 0, got {}",
+                self.time_horizon
+            ));
+        }
+        if !(self.max_speed.is_finite() && self.max_speed >= 0.0) {
+            bad.push(format!(
+                "max_speed must be finite and >= 0, got {}",
+                self.max_speed
+            ));
+        }
+        if !(3..=MAX_SIDES).contains(&self.polygon_sides) {
+            bad.push(format!(
+                "polygon_sides must be in 3..={MAX_SIDES}, got {}",
+                self.polygon_sides
+            ));
+        }
+        for (name, value) in [
+            ("sf_relaxation_time", self.sf_relaxation_time),
+            ("sf_range", self.sf_range),
+        ] {
+            if !(value.is_finite() && value > 0.0) {
+                bad.push(format!("{name} must be finite and > 0, got {value}"));
+            }
+        }
+        if !(self.sf_strength.is_finite() && self.sf_strength >= 0.0) {
+            bad.push(format!(
+                "sf_strength must be finite and >= 0, got {}",
+                self.sf_strength
+            ));
+        }
+        if bad.is_empty() {
+            Ok(())
+        } else {
+            Err(bad.join("; "))
+        }
+    }
+
+    /// The nearest usable parameters: invalid values fall back to the defaults (radius and
+    /// speed to 0), so the models never see NaN or out-of-range settings.
+    pub fn sanitized(&self) -> Self {
+        let d = Self::default();
+        let positive = |v: f64, default: f64| {
+            if v.is_finite() && v > 0.0 {
+                v
+            } else {
+                default
+            }
+        };
+        Self {
+            neighbor_radius: if self.neighbor_radius.is_nan() {
+                0.0
+            } else {
+                self.neighbor_radius.max(0.0)
+            },
+            max_neighbors: self.max_neighbors,
+            time_horizon: positive(self.time_horizon, d.time_horizon),
+            max_speed: if self.max_speed.is_nan() {
+                0.0
+            } else {
+                self.max_speed.clamp(0.0, SPEED_CAP)
+            },
+            polygon_sides: self.polygon_sides.clamp(3, MAX_SIDES),
+            sf_relaxation_time: positive(self.sf_relaxation_time, d.sf_relaxation_time),
+            sf_strength: if self.sf_strength.is_finite() {
+                self.sf_strength.max(0.0)
+            } else {
+                d.sf_strength
+            },
+            sf_range: positive(self.sf_range, d.sf_range),
         }
     }
 }
@@ -88,9 +187,13 @@ impl MotionModel for ConstantVelocity {
     }
 }
 
-/// Builds the model of the given kind. Until the other models land, every kind falls back to
-/// constant velocity (the frvo crate replaces this).
+/// Builds the model of the given kind. Invalid parameters are sanitised (see
+/// [`MotionParams::sanitized`]); call [`MotionParams::validate`] first to report them instead.
 pub fn make_model(kind: MotionKind, params: MotionParams) -> Box<dyn MotionModel> {
-    let _ = (kind, params);
-    Box::new(ConstantVelocity)
+    match kind {
+        MotionKind::Frvo => Box::new(Orca::new(params, Footprint::Ellipse)),
+        MotionKind::Rvo => Box::new(Orca::new(params, Footprint::Circle)),
+        MotionKind::SocialForce => Box::new(SocialForce::new(params)),
+        MotionKind::ConstantVelocity => Box::new(ConstantVelocity),
+    }
 }

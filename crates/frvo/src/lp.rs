@@ -1,0 +1,169 @@
+//! Incremental 2-D linear programming over half-planes and a speed disc (Seidel-style, the scheme
+//! ORCA uses): find the velocity closest to the preferred one inside every half-plane and the
+//! disc `|v| <= max_speed`; when none exists, the velocity in the disc whose largest violation of
+//! a half-plane is smallest.
+//!
+//! Lines are added one at a time. The current optimum only moves when the new line cuts it off,
+//! and then the new optimum lies on that line, which is a 1-D problem over the earlier lines.
+
+use crate::geometry::{cross, left_normal, V2};
+
+/// Lines whose directions' cross product is below this are treated as parallel.
+const PARALLEL_EPS: f64 = 1e-12;
+
+/// A directed line; its feasible half-plane lies to the left of `dir` (a unit vector).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Line {
+    pub point: V2,
+    pub dir: V2,
+}
+
+impl Line {
+    /// Signed distance of `v` on the wrong (right) side of the line: <= 0 when feasible.
+    #[inline]
+    pub fn violation(&self, v: V2) -> f64 {
+        cross(self.dir, self.point - v)
+    }
+}
+
+/// Result of [`solve`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Solution {
+    pub velocity: V2,
+    /// False when the half-planes and the disc have no common point; `velocity` then minimises
+    /// the largest violation.
+    pub feasible: bool,
+}
+
+/// Velocity closest to `pref` in all half-planes and `|v| <= max_speed` (or the min-max
+/// violation point when infeasible). `scratch` is reused between calls to avoid allocation.
+pub fn solve(lines: &[Line], max_speed: f64, pref: V2, scratch: &mut Vec<Line>) -> Solution {
+    let mut v = V2::zeros();
+    let failed = lp2(lines, max_speed, pref, false, &mut v);
+    if failed < lines.len() {
+        lp3(lines, failed, max_speed, &mut v, scratch);
+        Solution {
+            velocity: v,
+            feasible: false,
+        }
+    } else {
+        Solution {
+            velocity: v,
+            feasible: true,
+        }
+    }
+}
+
+/// Optimum on line `i` subject to lines `0..i` and the disc; false if that segment is empty.
+/// With `direction_opt`, `opt` is a unit direction to go as far as possible along; otherwise
+/// the point to get closest to.
+fn lp1(lines: &[Line], i: usize, radius: f64, opt: V2, direction_opt: bool, out: &mut V2) -> bool {
+    // Parameterise from the line's point nearest the origin: a far-away point (bisectors of
+    // nearly parallel lines) would lose the disc bounds to cancellation.
+    let dir = lines[i].dir;
+    let offset = cross(dir, lines[i].point);
+    let line = Line {
+        point: offset * left_normal(dir),
+        dir,
+    };
+    // Parameter range t of line.point + t * line.dir inside the disc.
+    let disc = radius * radius - offset * offset;
+    if disc.is_nan() || disc < 0.0 {
+        return false;
+    }
+    let root = disc.sqrt();
+    let (mut lo, mut hi) = (-root, root);
+    for other in &lines[..i] {
+        // other.violation(point + t dir) <= 0  <=>  t * denom <= numer.
+        let denom = cross(line.dir, other.dir);
+        let numer = cross(other.dir, line.point - other.point);
+        if denom.abs() <= PARALLEL_EPS {
+            if numer < 0.0 {
+                return false; // parallel, and this line lies wholly outside the other
+            }
+            continue;
+        }
+        let t = numer / denom;
+        if denom > 0.0 {
+            hi = hi.min(t);
+        } else {
+            lo = lo.max(t);
+        }
+        if lo > hi {
+            return false;
+        }
+    }
+    let t = if direction_opt {
+        if opt.dot(&line.dir) > 0.0 {
+            hi
+        } else {
+            lo
+        }
+    } else {
+        line.dir.dot(&(opt - line.point)).clamp(lo, hi)
+    };
+    *out = line.point + t * line.dir;
+    true
+}
+
+/// Adds the lines one by one; returns `lines.len()` on success, or the index of the first line
+/// that made the problem infeasible (`out` then holds the optimum of the lines before it).
+fn lp2(lines: &[Line], radius: f64, opt: V2, direction_opt: bool, out: &mut V2) -> usize {
+    *out = if direction_opt {
+        opt * radius
+    } else if opt.norm_squared() > radius * radius {
+        opt.normalize() * radius
+    } else {
+        opt
+    };
+    for i in 0..lines.len() {
+        if lines[i].violation(*out) > 0.0 {
+            let before = *out;
+            if !lp1(lines, i, radius, opt, direction_opt, out) {
+                *out = before;
+                return i;
+            }
+        }
+    }
+    lines.len()
+}
+
+/// Infeasible case, from line `begin` on: minimise the largest violation `d` (a 3-D LP in
+/// (v, d)). Whenever a line is violated by more than the current `d`, the new optimum has equal
+/// violation of that line and the worst earlier ones: a 2-D LP over the bisectors of that line
+/// and each earlier line, pushing as far as possible into the line's feasible side.
+fn lp3(lines: &[Line], begin: usize, radius: f64, out: &mut V2, projected: &mut Vec<Line>) {
+    let mut worst = 0.0;
+    for i in begin..lines.len() {
+        let line = lines[i];
+        if line.violation(*out) <= worst {
+            continue;
+        }
+        projected.clear();
+        for other in &lines[..i] {
+            let denom = cross(line.dir, other.dir);
+            let point = if denom.abs() <= PARALLEL_EPS {
+                if line.dir.dot(&other.dir) > 0.0 {
+                    continue; // same direction: the other is less violated everywhere
+                }
+                0.5 * (line.point + other.point)
+            } else {
+                line.point + (cross(other.dir, line.point - other.point) / denom) * line.dir
+            };
+            let dir = other.dir - line.dir;
+            let norm = dir.norm();
+            if norm > 0.0 {
+                projected.push(Line {
+                    point,
+                    dir: dir / norm,
+                });
+            }
+        }
+        let before = *out;
+        if lp2(projected, radius, left_normal(line.dir), true, out) < projected.len() {
+            // Only reachable through rounding; keep the previous point.
+            *out = before;
+        }
+        worst = line.violation(*out);
+    }
+}
