@@ -55,6 +55,10 @@ def test_fixed_batch_model_is_batched_and_contract_respected(tmp_path: Path) -> 
         expected = resized.reshape(128, -1).mean(axis=1)  # BGR as given: no channel swap
         np.testing.assert_allclose(row, expected / np.linalg.norm(expected), rtol=1e-5)
     assert emb.dtype == np.float32
+    # Boxes are set to the input's 1:2 aspect about their centre before cropping (DeepSORT).
+    frame = rng.integers(0, 256, (100, 100, 3), np.uint8)
+    got = reid.embed(frame, Detections(np.array([[40, 10, 50, 50]]), np.ones(1)), "bbox")
+    np.testing.assert_allclose(got[0], reid.embed_crops([frame[10:50, 35:55]])[0], rtol=1e-6)
 
 
 def test_osnet_unit_rows_and_batch_invariance() -> None:

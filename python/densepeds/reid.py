@@ -36,6 +36,7 @@ class ModelKind:
     scale: float  # multiply pixels by this first
     mean: tuple[float, float, float]  # then subtract (in the model's channel order)
     std: tuple[float, float, float]  # and divide
+    match_aspect: bool = False  # widen/narrow boxes about their centre to the input's w/h first
 
 
 MODEL_KINDS: dict[str, ModelKind] = {
@@ -44,8 +45,11 @@ MODEL_KINDS: dict[str, ModelKind] = {
         "NCHW", np.float32, True, 1 / 255, (0.485, 0.456, 0.406), (0.229, 0.224, 0.225)
     ),
     # DeepSORT mars-small128 (nwojke/deep_sort tools/generate_detections.py): [N,128,64,3] uint8
-    # BGR as cv2.imread gives, raw pixels (the graph normalises) -> [N,128].
-    "mars-small128": ModelKind("NHWC", np.uint8, False, 1.0, (0.0, 0.0, 0.0), (1.0, 1.0, 1.0)),
+    # BGR as cv2.imread gives, raw pixels (the graph normalises) -> [N,128]; boxes first set to
+    # the input's aspect ratio (width = 0.5 * height) about their centre, as DeepSORT does.
+    "mars-small128": ModelKind(
+        "NHWC", np.uint8, False, 1.0, (0.0, 0.0, 0.0), (1.0, 1.0, 1.0), match_aspect=True
+    ),
 }
 
 
@@ -142,6 +146,12 @@ class ReID:
         check_frame(frame)
         if len(dets) == 0:
             return np.zeros((0, self.dim), np.float32)
+        if self.kind.match_aspect:
+            boxes = dets.boxes.astype(np.float64)
+            centre = (boxes[:, 0] + boxes[:, 2]) / 2
+            half = (boxes[:, 3] - boxes[:, 1]) * (self.width / self.height) / 2
+            boxes[:, 0], boxes[:, 2] = centre - half, centre + half
+            dets = Detections(boxes.astype(np.float32), dets.scores, dets.masks, dets.mask_boxes)
         return self.embed_crops(crops_for(frame, dets, features))
 
 
