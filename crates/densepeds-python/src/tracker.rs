@@ -50,22 +50,32 @@ impl<'py> FloatArray<'py> {
 
     fn to_f64(&self) -> Cow<'_, [f64]> {
         match self {
-            Self::F64(a) => match a.as_slice() {
-                Ok(s) => Cow::Borrowed(s),
-                Err(_) => Cow::Owned(a.as_array().iter().copied().collect()),
-            },
+            Self::F64(a) => c_order_slice(a).map_or_else(
+                || Cow::Owned(a.as_array().iter().copied().collect()),
+                Cow::Borrowed,
+            ),
             Self::F32(a) => Cow::Owned(a.as_array().iter().map(|&x| f64::from(x)).collect()),
         }
     }
 
     fn to_f32(&self) -> Cow<'_, [f32]> {
         match self {
-            Self::F32(a) => match a.as_slice() {
-                Ok(s) => Cow::Borrowed(s),
-                Err(_) => Cow::Owned(a.as_array().iter().copied().collect()),
-            },
+            Self::F32(a) => c_order_slice(a).map_or_else(
+                || Cow::Owned(a.as_array().iter().copied().collect()),
+                Cow::Borrowed,
+            ),
             Self::F64(a) => Cow::Owned(a.as_array().iter().map(|&x| x as f32).collect()),
         }
+    }
+}
+
+/// The array's memory when it is row-major contiguous (`as_slice` alone also accepts Fortran
+/// order, whose memory order is not the logical one).
+fn c_order_slice<'a, T: numpy::Element>(a: &'a PyReadonlyArrayDyn<'_, T>) -> Option<&'a [T]> {
+    if a.is_c_contiguous() {
+        a.as_slice().ok()
+    } else {
+        None
     }
 }
 
