@@ -23,7 +23,7 @@ from densepeds.reid import ReID, separation, summarise
 from densepeds.segment import masks_for_boxes
 
 REPO = Path(__file__).resolve().parent.parent
-FEATURES = ("bbox", "segmented", "masked_mean", "masked_blur")
+FEATURES = ("bbox", "segmented", "masked_mean", "masked_blur", "masked_pool")
 
 
 def video_frames(path: Path, wanted: set[int]) -> dict[int, np.ndarray]:

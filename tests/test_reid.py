@@ -78,6 +78,18 @@ def test_osnet_unit_rows_and_batch_invariance() -> None:
     assert many.embed(frame, Detections.empty()).shape == (0, 512)
     with pytest.raises(InputError):
         many.embed(frame[..., 0], dets)
+    # Mask-weighted pooling: a full mask is plain average pooling, i.e. the plain crop ...
+    full = [np.ones((int(b[3] - b[1]), int(b[2] - b[0])), bool) for b in boxes]
+    masked = Detections(boxes, np.ones(3), full, boxes.astype(np.int32))
+    np.testing.assert_allclose(many.embed(frame, masked, "masked_pool"), b, atol=1e-5)
+    # ... and a half mask changes the embedding.
+    half = [m.copy() for m in full]
+    for m in half:
+        m[:, m.shape[1] // 2 :] = False
+    halved = many.embed(
+        frame, Detections(boxes, np.ones(3), half, boxes.astype(np.int32)), "masked_pool"
+    )
+    assert (1 - np.sum(halved * b, axis=1)).min() > 1e-4
     with pytest.raises(ParameterError):
         ReID(model, batch_size=0)
     with pytest.raises(ModelError):
@@ -100,7 +112,7 @@ def people_separation(
         "yoloseg", shared_path("models", "yolov8n-seg-320-int8.onnx"), threads=2
     )
     reid = ReID(shared_path("models", "osnet_x0_25_msmt17.onnx"), threads=2)
-    features = ["bbox", "segmented", "masked_blur"]
+    features = ["bbox", "segmented", "masked_blur", "masked_pool"]
     results: dict[str, list] = {f: [] for f in ["bbox (all)", *features]}
     for s in starts:
         views = []

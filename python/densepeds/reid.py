@@ -15,15 +15,17 @@ from pathlib import Path
 import cv2
 import numpy as np
 import numpy.typing as npt
+import onnxruntime as ort
 
 from densepeds.detect import onnxutil
 from densepeds.detect.yoloseg import check_frame
 from densepeds.errors import ModelError, ParameterError
 from densepeds.modelfiles import find_model
-from densepeds.segment import crops_for
+from densepeds.segment import box_region, crop_mask, crops_for
 from densepeds.types import Detections
 
 DEFAULT_MODEL = "osnet_x0_25_msmt17.onnx"
+POOL_FLOOR = 0.1  # weight of a background cell in mask-weighted pooling (person cells: 1)
 
 
 @dataclass(frozen=True)
@@ -110,8 +112,22 @@ class ReID:
         self.height, self.width = int(hw[0]), int(hw[1])  # type: ignore[arg-type]
         self.input_name = inputs[0].name
         self.dim = int(self._run(np.zeros((1, self.height, self.width, 3), np.uint8)).shape[1])
+        self.threads = threads
+        self._pooled: tuple[ort.InferenceSession, tuple[int, int]] | None = None
 
-    def _run(self, batch_bgr: npt.NDArray[np.uint8]) -> npt.NDArray[np.float32]:
+    def _pooled_session(self) -> tuple[ort.InferenceSession, tuple[int, int]]:
+        """The model with mask-weighted final pooling, built on first use."""
+        if self._pooled is None:
+            model = onnxutil.load_model(self.path)
+            if onnxutil.has_fixed_batch(model):
+                model = onnxutil.with_dynamic_batch(model)
+            pooled, size = onnxutil.with_weighted_final_pool(model)
+            self._pooled = (onnxutil.make_session(pooled, self.threads), size)
+        return self._pooled
+
+    def _run(
+        self, batch_bgr: npt.NDArray[np.uint8], weights: npt.NDArray[np.float32] | None = None
+    ) -> npt.NDArray[np.float32]:
         k = self.kind
         x = batch_bgr[..., ::-1] if k.rgb else batch_bgr
         if k.dtype is np.uint8:
@@ -122,11 +138,24 @@ class ReID:
             inp = x.astype(np.float32) * mul - sub
         if k.layout == "NCHW":
             inp = inp.transpose(0, 3, 1, 2)
-        out = self.session.run(None, {self.input_name: np.ascontiguousarray(inp)})[0]
+        feed: dict[str, np.ndarray] = {self.input_name: np.ascontiguousarray(inp)}
+        if weights is None:
+            out = self.session.run(None, feed)[0]
+        else:
+            session, _ = self._pooled_session()
+            feed[onnxutil.POOL_WEIGHTS] = weights
+            out = session.run(None, feed)[0]
         return np.asarray(out, np.float32).reshape(len(batch_bgr), -1)
 
-    def embed_crops(self, crops: list[npt.NDArray[np.uint8]]) -> npt.NDArray[np.float32]:
-        """BGR crops of any size -> float32 [N, D] with unit L2 rows."""
+    def embed_crops(
+        self,
+        crops: list[npt.NDArray[np.uint8]],
+        person: list[npt.NDArray[np.bool_]] | None = None,
+    ) -> npt.NDArray[np.float32]:
+        """BGR crops of any size -> float32 [N, D] with unit L2 rows.
+
+        ``person`` (one mask per crop) switches to mask-weighted pooling of the final features.
+        """
         out = np.zeros((len(crops), getattr(self, "dim", 0)), np.float32)
         for start in range(0, len(crops), self.batch_size):
             chunk = crops[start : start + self.batch_size]
@@ -135,9 +164,21 @@ class ReID:
                 batch[i] = cv2.resize(
                     crop, (self.width, self.height), interpolation=cv2.INTER_LINEAR
                 )
-            out[start : start + len(chunk)] = self._run(batch)
+            weights = None
+            if person is not None:
+                weights = self._pool_weights(person[start : start + len(chunk)])
+            out[start : start + len(chunk)] = self._run(batch, weights)
         norms = np.linalg.norm(out, axis=1, keepdims=True)
         return (out / np.maximum(norms, 1e-12)).astype(np.float32)
+
+    def _pool_weights(self, masks: list[npt.NDArray[np.bool_]]) -> npt.NDArray[np.float32]:
+        """Per feature cell: POOL_FLOOR + (1 - POOL_FLOOR) * the person's share of the cell."""
+        _, (h, w) = self._pooled_session()
+        out = np.empty((len(masks), 1, h, w), np.float32)
+        for i, m in enumerate(masks):
+            share = cv2.resize(m.astype(np.float32), (w, h), interpolation=cv2.INTER_AREA)
+            out[i, 0] = POOL_FLOOR + (1 - POOL_FLOOR) * share
+        return out
 
     def embed(
         self, frame: npt.NDArray[np.uint8], dets: Detections, features: str = "segmented"
@@ -152,6 +193,17 @@ class ReID:
             half = (boxes[:, 3] - boxes[:, 1]) * (self.width / self.height) / 2
             boxes[:, 0], boxes[:, 2] = centre - half, centre + half
             dets = Detections(boxes.astype(np.float32), dets.scores, dets.masks, dets.mask_boxes)
+        if features == "masked_pool":
+            regions = [box_region(b, frame.shape[1], frame.shape[0]) for b in dets.boxes]
+            person = [
+                crop_mask(
+                    r,
+                    None if dets.masks is None else dets.masks[i],
+                    None if dets.mask_boxes is None else dets.mask_boxes[i],
+                )
+                for i, r in enumerate(regions)
+            ]
+            return self.embed_crops(crops_for(frame, dets, "bbox"), person)
         return self.embed_crops(crops_for(frame, dets, features))
 
 

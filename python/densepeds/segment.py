@@ -21,7 +21,7 @@ IMAGENET_MEAN_BGR = (104, 116, 124)  # 255 * (0.406, 0.456, 0.485)
 BLUR_SIGMA_FRACTION = 0.08  # of the crop height: enough to wipe out a neighbour's features
 
 # feature name -> background treatment; "bbox" is the plain crop.
-FEATURES = ("segmented", "bbox", "masked_mean", "masked_blur")
+FEATURES = ("segmented", "bbox", "masked_mean", "masked_blur", "masked_pool")
 
 
 def box_region(box: npt.ArrayLike, width: int, height: int) -> tuple[int, int, int, int]:
@@ -101,7 +101,7 @@ def crops_for(frame: Image, dets: Detections, features: str = "segmented") -> li
     """One crop per detection for the appearance ``features`` (see FEATURES)."""
     if features not in FEATURES:
         raise ParameterError(f"features must be one of {FEATURES}, got {features!r}")
-    if features == "bbox":
+    if features in ("bbox", "masked_pool"):  # masked_pool weights features, not pixels
         return [bbox_crop(frame, b) for b in dets.boxes]
     fill = {"segmented": "white", "masked_mean": "mean", "masked_blur": "blur"}[features]
     masks = dets.masks

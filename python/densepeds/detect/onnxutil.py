@@ -113,3 +113,49 @@ def batched_session(path: Path, threads: int | None) -> tuple[ort.InferenceSessi
 
 def as_float32(array: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(array, dtype=np.float32)
+
+
+POOL_WEIGHTS = "pool_weights"
+
+
+def with_weighted_final_pool(model: onnx.ModelProto) -> tuple[onnx.ModelProto, tuple[int, int]]:
+    """A copy whose last GlobalAveragePool becomes a weighted average over a new input.
+
+    The new input ``pool_weights`` [N, 1, h, w] (the pooled feature map's size, returned) lets
+    the embedding average the person's cells more than the background's ("mask-weighted
+    pooling"), instead of repainting pixels. Raises ModelError when the model has no such pool.
+    """
+    pools = [i for i, n in enumerate(model.graph.node) if n.op_type == "GlobalAveragePool"]
+    if not pools:
+        raise ModelError("mask-weighted pooling needs a model ending in GlobalAveragePool")
+    inferred = onnx.shape_inference.infer_shapes(model)
+    target = model.graph.node[pools[-1]]
+    shapes = {v.name: v.type.tensor_type.shape.dim for v in inferred.graph.value_info}
+    dims = shapes.get(target.input[0])
+    if dims is None or len(dims) != 4 or not all(d.HasField("dim_value") for d in dims[2:]):
+        raise ModelError("cannot infer the size of the feature map before the final pooling")
+    h, w = dims[2].dim_value, dims[3].dim_value
+    out = onnx.ModelProto()
+    out.CopyFrom(model)
+    graph = out.graph
+    feat, pooled = target.input[0], target.output[0]
+    axes = numpy_helper.from_array(np.array([2, 3], np.int64), "pool_weights__axes")
+    graph.initializer.append(axes)
+    new_nodes = [
+        onnx.helper.make_node("Mul", [feat, POOL_WEIGHTS], ["pool_weights__wf"]),
+        onnx.helper.make_node(
+            "ReduceSum", ["pool_weights__wf", axes.name], ["pool_weights__sum"], keepdims=1
+        ),
+        onnx.helper.make_node(
+            "ReduceSum", [POOL_WEIGHTS, axes.name], ["pool_weights__total"], keepdims=1
+        ),
+        onnx.helper.make_node("Div", ["pool_weights__sum", "pool_weights__total"], [pooled]),
+    ]
+    nodes = list(graph.node)
+    index = pools[-1]
+    del graph.node[:]
+    graph.node.extend(nodes[:index] + new_nodes + nodes[index + 1 :])
+    graph.input.append(
+        onnx.helper.make_tensor_value_info(POOL_WEIGHTS, onnx.TensorProto.FLOAT, ["N", 1, h, w])
+    )
+    return out, (h, w)
