@@ -145,7 +145,7 @@ class IoUBaseline:
 class DensePedsAdapter:
     """Our tracker, motion only (no embeddings): densepeds.tracking.Tracker."""
 
-    def __init__(self, motion: str, **params: object) -> None:
+    def __init__(self, motion: str, **params: float | int | bool) -> None:
         from densepeds.tracking import Tracker
 
         self.tracker = Tracker(motion=motion, **params)
@@ -182,7 +182,7 @@ def make_tracker(name: str, fps: float, params: dict[str, object] | None = None)
     if name == "iou-baseline":
         return IoUBaseline()
     if name.startswith("densepeds-") and name.removeprefix("densepeds-") in MOTIONS:
-        return DensePedsAdapter(name.removeprefix("densepeds-"), **(params or {}))
+        return DensePedsAdapter(name.removeprefix("densepeds-"), **(params or {}))  # type: ignore[arg-type]
     raise ValueError(f"unknown tracker {name!r}")
 
 
