@@ -6,13 +6,14 @@ and ``cv`` for the method's ablation), then matched in stages, each solved optim
 ``gate_radius`` box heights), then IoU between predicted boxes and the remaining detections. With
 ``embeddings=None`` it is a motion-only tracker.
 
-Parameters (keyword arguments; defaults are the method's pure form, extensions off):
+Parameters (keyword arguments). Defaults were tuned motion-only on the six dev sequences together
+(benchmarks/results/tracker.md); ``recovery=False, size_smoothing=0`` is the method's pure form.
 
 ==========================  =======  ===========================================================
 name                        default  meaning
 ==========================  =======  ===========================================================
-n_init                      3        matches before a track is confirmed and reported
-max_age                     30       xi: frames a track survives unmatched
+n_init                      2        matches before a track is confirmed and reported
+max_age                     60       xi: frames a track survives unmatched
 appearance_threshold        0.2      lambda: largest cosine distance for an appearance match
 gallery_size                20       embeddings kept per track
 gate_radius                 1.0      rho in track box heights (``inf`` disables gating)
@@ -22,13 +23,14 @@ new_track_threshold         -inf     smallest score that starts a track
 second_pass                 False    ByteTrack-style pass on [low_threshold, det_threshold)
 low_threshold               -inf     lowest score used by the second pass
 low_iou_threshold           0.5      smallest IoU for a second-pass match
-recovery                    False    OC-SORT-style re-match of lost tracks by their last box
+recovery                    True     OC-SORT-style re-match of lost tracks by their last box
 recovery_iou_threshold      0.3      smallest IoU for a recovery match
 velocity_smoothing          0.5      weight of the newly observed velocity
-pref_window                 5        frames the preferred velocity is averaged over
-size_smoothing              0.0      weight of the previous box size (0 = detection's size)
+pref_window                 20       frames the preferred velocity is averaged over
+size_smoothing              0.5      weight of the previous box size (0 = detection's size)
 ellipse_l_scale             0.15     FRVO ellipse l = scale * box height (the face)
-ellipse_w_scale             0.8      FRVO ellipse w = scale * box width (the shoulders)
+ellipse_w_scale             0.15     FRVO ellipse w = scale * box width (kept small: overlap
+                                     in a front view is occlusion, not collision)
 output_lost                 0        also report tracks this many frames after their last match
 neighbor_radius, max_neighbors, time_horizon, max_speed, polygon_sides: the motion model's.
 ==========================  =======  ===========================================================
