@@ -221,27 +221,37 @@ class YoloSegDetector:
         for k in np.unique(view_idx):
             proto = protos[k] if self.proto_nhwc else protos[k].transpose(1, 2, 0)
             ph, pw = proto.shape[:2]
-            members = np.flatnonzero(view_idx == k)
-            logits = proto.reshape(ph * pw, -1) @ coefs[members].T.astype(proto.dtype)
-            logits = logits.reshape(ph, pw, len(members))
             v = views[k]
             ax = self.input_w / pw / v.scale  # frame px per prototype cell
             ay = self.input_h / ph / v.scale
-            for j, i in enumerate(members):
-                x0, y0, x1, y1 = mask_boxes[i]
-                # Prototype cell centre u maps to frame pixel index (u + 0.5) * a - 0.5 + origin.
+            for i in np.flatnonzero(view_idx == k):
+                x0, y0, x1, y1 = (int(c) for c in mask_boxes[i])
+                # Prototype cell centre u maps to frame pixel index (u + 0.5) * a - 0.5 + origin;
+                # only the cells under the box (plus a margin for interpolation) are evaluated.
+                px0, px1 = _cell_span(x0, x1, v.tile.x0, ax, pw)
+                py0, py1 = _cell_span(y0, y1, v.tile.y0, ay, ph)
+                # einsum, not BLAS: tiny products with BLAS threads stall under onnxruntime load.
+                logits = np.einsum("hwc,c->hw", proto[py0:py1, px0:px1], coefs[i])
                 warp = np.array(
                     [
-                        [ax, 0.0, 0.5 * ax - 0.5 + v.tile.x0 - x0],
-                        [0.0, ay, 0.5 * ay - 0.5 + v.tile.y0 - y0],
+                        [ax, 0.0, (px0 + 0.5) * ax - 0.5 + v.tile.x0 - x0],
+                        [0.0, ay, (py0 + 0.5) * ay - 0.5 + v.tile.y0 - y0],
                     ]
                 )
                 local = cv2.warpAffine(
-                    np.ascontiguousarray(logits[:, :, j]),
+                    np.ascontiguousarray(logits, dtype=np.float32),
                     warp,
-                    (int(x1 - x0), int(y1 - y0)),
+                    (x1 - x0, y1 - y0),
                     flags=cv2.INTER_LINEAR,
                     borderMode=cv2.BORDER_REPLICATE,
                 )
                 masks[i] = local.reshape(y1 - y0, x1 - x0) > 0
         return masks, mask_boxes
+
+
+def _cell_span(lo: int, hi: int, origin: int, step: float, cells: int) -> tuple[int, int]:
+    """Prototype cells [c0, c1) whose centres cover frame pixels [lo, hi), with a 1-cell margin."""
+    c0 = int(np.floor((lo + 0.5 - origin) / step - 0.5)) - 1
+    c1 = int(np.ceil((hi - 0.5 - origin) / step - 0.5)) + 2
+    c0 = min(max(c0, 0), cells - 1)
+    return c0, min(max(c1, c0 + 1), cells)
