@@ -178,11 +178,21 @@ impl Ellipse {
     }
 }
 
-/// Heading of a pedestrian: the direction of its velocity, else of its preferred velocity, else
-/// the x axis (people are assumed to face where they walk).
+/// Heading of a pedestrian (people are assumed to face where they walk): the direction of its
+/// velocity while it walks at least half its preferred speed; a slowed-down pedestrian
+/// (stepping aside, waiting) keeps facing its preferred direction rather than turning its body
+/// to every small sidestep; then any non-zero velocity; else the x axis.
 pub fn heading(vel: V2, pref_vel: V2) -> V2 {
     const MIN_SPEED: f64 = 1e-9;
-    for v in [vel, pref_vel] {
+    let speed = vel.norm();
+    let pref_speed = pref_vel.norm();
+    let walking = speed.is_finite() && speed > MIN_SPEED && !(speed < 0.5 * pref_speed);
+    let order = if walking {
+        [vel, pref_vel]
+    } else {
+        [pref_vel, vel]
+    };
+    for v in order {
         let n = v.norm();
         if n.is_finite() && n > MIN_SPEED {
             return v / n;

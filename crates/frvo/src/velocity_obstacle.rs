@@ -158,3 +158,46 @@ pub fn reciprocal_line(v_a: V2, avoid: Avoidance) -> Line {
         dir: V2::new(n.y, -n.x),
     }
 }
+
+/// Exact avoidance for two discs of combined radius `r` (the circular RVO baseline): the cone's
+/// legs are tangents from the origin, its cap the circle `(p / tau, r / tau)`; overlapping discs
+/// use the circle `(p / dt, r / dt)`.
+pub fn avoidance_circle(p: V2, r: f64, w: V2, tau: f64, dt: f64) -> Avoidance {
+    let dist2 = p.norm_squared();
+    let r2 = r * r;
+    let (centre, radius) = if dist2 > r2 {
+        (p / tau, r / tau)
+    } else {
+        (p / dt, r / dt)
+    };
+    let w0 = w - centre;
+    let along = w0.dot(&p);
+    let on_cap = dist2 <= r2 || (along < 0.0 && along * along > r2 * w0.norm_squared());
+    if on_cap {
+        let len = w0.norm();
+        let normal = if len > 1e-12 {
+            w0 / len
+        } else if dist2 > 0.0 {
+            -p / dist2.sqrt()
+        } else {
+            V2::new(1.0, 0.0)
+        };
+        return Avoidance {
+            u: (radius - len) * normal,
+            normal,
+        };
+    }
+    // Nearest leg: the tangent on the side of `w`, rotated from `p` by the half-angle.
+    let leg = (dist2 - r2).sqrt();
+    let (dir, normal) = if cross(p, w0) > 0.0 {
+        let d = V2::new(p.x * leg - p.y * r, p.x * r + p.y * leg) / dist2;
+        (d, left_normal(d))
+    } else {
+        let d = V2::new(p.x * leg + p.y * r, -p.x * r + p.y * leg) / dist2;
+        (d, right_normal(d))
+    };
+    Avoidance {
+        u: w.dot(&dir) * dir - w,
+        normal,
+    }
+}

@@ -2,19 +2,20 @@
 //! classic RVO/ORCA baseline. Both share the polygon velocity obstacles, the grid and the LP.
 
 use crate::agent::Agent;
-use crate::geometry::{heading, is_finite, Ellipse, Polygon, V2};
+use crate::geometry::{heading, is_finite, Ellipse, Polygon, MIN_SIZE, V2};
 use crate::lp::{self, Line};
 use crate::minkowski::minkowski_sum;
 use crate::model::{MotionKind, MotionModel, MotionParams};
 use crate::neighbors::NeighborGrid;
-use crate::velocity_obstacle::{avoidance, reciprocal_line};
+use crate::velocity_obstacle::{avoidance, avoidance_circle, reciprocal_line};
 
 /// How a pedestrian's footprint is built from its axes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Footprint {
     /// Ellipse `l` along the heading x `w` across (FRVO).
     Ellipse,
-    /// Circle of diameter `max(l, w)`, as circular RVO models a pedestrian.
+    /// Circle of diameter `max(l, w)`, as circular RVO models a pedestrian (exact disc
+    /// velocity obstacles, no polygon).
     Circle,
 }
 
@@ -27,6 +28,7 @@ pub struct Orca {
     positions: Vec<V2>,
     valid: Vec<bool>,
     shapes: Vec<Polygon>,
+    radii: Vec<f64>,
     neighbors: Vec<(f64, usize)>,
     lines: Vec<Line>,
     scratch: Vec<Line>,
@@ -41,6 +43,7 @@ impl Orca {
             positions: Vec::new(),
             valid: Vec::new(),
             shapes: Vec::new(),
+            radii: Vec::new(),
             neighbors: Vec::new(),
             lines: Vec::new(),
             scratch: Vec::new(),
@@ -51,15 +54,8 @@ impl Orca {
         &self.params
     }
 
-    fn footprint_of(&self, a: &Agent) -> Polygon {
-        let e = match self.footprint {
-            Footprint::Ellipse => Ellipse::new(a.l, a.w, heading(a.vel, a.pref_vel)),
-            Footprint::Circle => {
-                let d = finite_max(a.l, a.w);
-                Ellipse::new(d, d, V2::new(1.0, 0.0))
-            }
-        };
-        e.polygon(self.params.polygon_sides)
+    fn polygon_of(&self, a: &Agent) -> Polygon {
+        Ellipse::new(a.l, a.w, heading(a.vel, a.pref_vel)).polygon(self.params.polygon_sides)
     }
 }
 
@@ -112,9 +108,19 @@ impl MotionModel for Orca {
         self.valid.clear();
         self.valid.extend(agents.iter().map(is_valid));
         self.shapes.clear();
-        for a in agents {
-            let s = self.footprint_of(a);
-            self.shapes.push(s);
+        self.radii.clear();
+        match self.footprint {
+            Footprint::Ellipse => {
+                for a in agents {
+                    let s = self.polygon_of(a);
+                    self.shapes.push(s);
+                }
+            }
+            Footprint::Circle => self.radii.extend(
+                agents
+                    .iter()
+                    .map(|a| 0.5 * finite_max(a.l, a.w).max(MIN_SIZE)),
+            ),
         }
         self.grid
             .build(&self.positions, &self.valid, p.neighbor_radius);
@@ -128,12 +134,24 @@ impl MotionModel for Orca {
             }
             self.grid
                 .query(&self.positions, i, p.max_neighbors, &mut self.neighbors);
-            let minus_me = self.shapes[i].negated();
+            let minus_me = match self.footprint {
+                Footprint::Ellipse => self.shapes[i].negated(),
+                Footprint::Circle => Polygon::default(),
+            };
             self.lines.clear();
             for &(_, j) in &self.neighbors {
                 let b = &agents[j];
-                let sum = minkowski_sum(&self.shapes[j], &minus_me);
-                let avoid = avoidance(b.pos - a.pos, &sum, a.vel - b.vel, p.time_horizon, dt);
+                let (rel_pos, rel_vel) = (b.pos - a.pos, a.vel - b.vel);
+                let avoid = match self.footprint {
+                    Footprint::Ellipse => {
+                        let sum = minkowski_sum(&self.shapes[j], &minus_me);
+                        avoidance(rel_pos, &sum, rel_vel, p.time_horizon, dt)
+                    }
+                    Footprint::Circle => {
+                        let r = self.radii[i] + self.radii[j];
+                        avoidance_circle(rel_pos, r, rel_vel, p.time_horizon, dt)
+                    }
+                };
                 let line = reciprocal_line(a.vel, avoid);
                 if is_finite(line.point) && line.dir.norm_squared() > 0.5 {
                     self.lines.push(line);
