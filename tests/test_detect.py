@@ -6,6 +6,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import onnx
 import pytest
 from conftest import shared_path
 from densepeds.detect import make_detector
@@ -23,6 +24,7 @@ from densepeds.detect.yoloseg import YoloSegDetector
 from densepeds.errors import InputError, ModelError, ParameterError
 from densepeds.motio import read_gt
 from densepeds.types import Detections
+from onnx import TensorProto, helper, numpy_helper
 from scipy.optimize import linear_sum_assignment
 
 YOLO = "yolov8n-seg-320-int8.onnx"
@@ -246,3 +248,80 @@ def test_precomputed_detector_reads_det_file() -> None:
     np.testing.assert_allclose(first.boxes[0], [500, 158, 530.979, 228.299], rtol=1e-5)
     assert first.scores[0] == pytest.approx(93.673)  # MOT15 scores keep their range
     assert len(det(frame_number=10**6)) == 0
+
+
+# --- geometry on a synthetic model of the Ultralytics contract ---------------------------------
+def tiny_yoloseg(path: Path) -> Path:
+    """NCHW [1,3,64,64] model with constant outputs (made batch-shaped from the input).
+
+    Anchors: a person at (cx, cy, w, h) = (0.5, 0.25, 0.25, 0.25) of the input scoring 0.9,
+    a class-1 object, and a weaker duplicate of the person. Prototype 0 is +10 on the left
+    half of the 16x16 grid and -10 on the right; mask coefficients select it.
+    """
+    preds = np.zeros((1, 4 + 2 + 2, 12), np.float32)  # anchors > channels, as in real models
+    preds[0, :4, 0] = [0.5, 0.25, 0.25, 0.25]
+    preds[0, 4:8, 0] = [0.9, 0.0, 1.0, 0.0]
+    preds[0, :4, 1] = [0.2, 0.6, 0.1, 0.1]
+    preds[0, 4:8, 1] = [0.05, 0.9, 1.0, 0.0]
+    preds[0, :4, 2] = [0.51, 0.25, 0.25, 0.25]
+    preds[0, 4:8, 2] = [0.8, 0.0, 1.0, 0.0]
+    protos = np.zeros((1, 2, 16, 16), np.float32)
+    protos[0, 0, :, :8] = 10.0
+    protos[0, 0, :, 8:] = -10.0
+    nodes = [
+        helper.make_node("ReduceMean", ["images"], ["m"], axes=[1, 2, 3], keepdims=1),
+        helper.make_node("Constant", [], ["zero"], value=numpy_helper.from_array(np.float32(0))),
+        helper.make_node("Mul", ["m", "zero"], ["z4"]),  # [N,1,1,1] zeros
+        helper.make_node("Constant", [], ["ax"], value=numpy_helper.from_array(np.array([3]))),
+        helper.make_node("Squeeze", ["z4", "ax"], ["z3"]),  # [N,1,1]
+        helper.make_node("Constant", [], ["p"], value=numpy_helper.from_array(preds)),
+        helper.make_node("Constant", [], ["q"], value=numpy_helper.from_array(protos)),
+        helper.make_node("Add", ["z3", "p"], ["output0"]),
+        helper.make_node("Add", ["z4", "q"], ["output1"]),
+    ]
+    graph = helper.make_graph(
+        nodes,
+        "tiny_yoloseg",
+        [helper.make_tensor_value_info("images", TensorProto.FLOAT, [1, 3, 64, 64])],
+        [
+            helper.make_tensor_value_info("output0", TensorProto.FLOAT, [1, 8, 12]),
+            helper.make_tensor_value_info("output1", TensorProto.FLOAT, [1, 2, 16, 16]),
+        ],
+    )
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 13)])
+    onnx.checker.check_model(model)
+    onnx.save(model, str(path))
+    return path
+
+
+def test_yoloseg_decoding_geometry(tmp_path: Path) -> None:
+    det = make_detector("yoloseg", tiny_yoloseg(tmp_path / "y.onnx"), tiles=None, threads=1)
+    assert isinstance(det, YoloSegDetector)
+    assert not det.nhwc and not det.proto_nhwc and det.num_classes == 2 and det.num_masks == 2
+    # 128x96 frame -> scale 0.5 into the 64x64 input (letterboxed to 64x48).
+    dets = det(np.zeros((96, 128, 3), np.uint8))
+    # Input box (24, 8)-(40, 24) -> frame (48, 16)-(80, 48); the class-1 object and the
+    # overlapping weaker duplicate are gone.
+    np.testing.assert_allclose(dets.boxes, [[48, 16, 80, 48]], atol=1e-4)
+    np.testing.assert_allclose(dets.scores, [0.9], atol=1e-6)
+    assert dets.masks is not None and dets.mask_boxes is not None
+    assert dets.mask_boxes.tolist() == [[48, 16, 80, 48]]
+    # Prototype cells are 8 frame px; the +/- edge between cells 7 and 8 falls at x = 63.5.
+    mask = dets.masks[0]
+    assert mask.shape == (32, 32)
+    assert mask[:, : 64 - 48].all() and not mask[:, 64 - 48 :].any()
+
+
+def test_yoloseg_tiles_map_back_to_the_frame(tmp_path: Path) -> None:
+    det = make_detector("yoloseg", tiny_yoloseg(tmp_path / "y.onnx"), tiles=(2, 1), threads=1)
+    assert isinstance(det, YoloSegDetector) and det.rewritten  # batch 1 -> dynamic
+    dets = det(np.zeros((64, 128, 3), np.uint8))
+    # Every view reports the same relative box: in each tile and in the whole frame; each maps
+    # back through its own letterbox scale and origin.
+    views = [(t.x0, 64 / max(t.x1 - t.x0, t.y1 - t.y0)) for t in make_tiles(128, 64, 2, 1)]
+    expected = []
+    for x0, scale in [*views, (0, 0.5)]:
+        expected.append([24 / scale + x0, 8 / scale, 40 / scale + x0, 24 / scale])
+    got = sorted(dets.boxes.tolist())
+    assert len(got) == 3
+    np.testing.assert_allclose(got, sorted(expected), atol=0.05)
