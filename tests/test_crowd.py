@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
-
 from densepeds import _core
 from densepeds.errors import ParameterError
 
@@ -17,7 +18,9 @@ def head_on(offset: float = 1.0) -> tuple[np.ndarray, ...]:
     return pos, vel, vel.copy(), axes
 
 
-def ellipses_overlap(p: np.ndarray, q: np.ndarray, hp: np.ndarray, hq: np.ndarray, axes: np.ndarray) -> bool:
+def ellipses_overlap(
+    p: np.ndarray, q: np.ndarray, hp: np.ndarray, hq: np.ndarray, axes: np.ndarray
+) -> bool:
     """Sampled test: does a boundary point of either ellipse fall inside the other?"""
     t = np.linspace(0.0, 2.0 * np.pi, 720, endpoint=False)
 
@@ -31,13 +34,15 @@ def ellipses_overlap(p: np.ndarray, q: np.ndarray, hp: np.ndarray, hq: np.ndarra
         v = (h[0] * d[:, 1] - h[1] * d[:, 0]) / (0.5 * ax[1])
         return u * u + v * v < 1.0 - 1e-6
 
-    return bool(inside(boundary(p, hp, axes), q, hq, axes).any() or inside(boundary(q, hq, axes), p, hp, axes).any())
+    return bool(
+        inside(boundary(p, hp, axes), q, hq, axes).any()
+        or inside(boundary(q, hq, axes), p, hp, axes).any()
+    )
 
 
 def heading(v: np.ndarray, pref: np.ndarray) -> np.ndarray:
-    """The model's orientation rule: velocity while walking at >= half the preferred speed."""
-    walking = np.hypot(*v) >= 0.5 * np.hypot(*pref)
-    for w in (v, pref) if walking else (pref, v):
+    """The model's orientation rule: the preferred direction, else the velocity."""
+    for w in (pref, v):
         n = float(np.hypot(*w))
         if n > 1e-9:
             return w / n
@@ -73,13 +78,20 @@ def test_shapes_and_dtypes() -> None:
         ({"max_speed": float("inf")}, ParameterError),
     ],
 )
-def test_bad_input_raises(kwargs: dict[str, object], exc: type[Exception]) -> None:
+def test_bad_input_raises(kwargs: dict[str, Any], exc: type[Exception]) -> None:
     pos, vel, pref, axes = head_on()
-    args: dict[str, object] = {"positions": pos, "velocities": vel, "pref_velocities": pref, "axes": axes}
+    args: dict[str, Any] = {
+        "positions": pos,
+        "velocities": vel,
+        "pref_velocities": pref,
+        "axes": axes,
+    }
     options = {k: v for k, v in kwargs.items() if k not in args}
     args.update({k: v for k, v in kwargs.items() if k in args})
     with pytest.raises(exc):
-        _core.step_crowd(args["positions"], args["velocities"], args["pref_velocities"], args["axes"], **options)
+        _core.step_crowd(
+            args["positions"], args["velocities"], args["pref_velocities"], args["axes"], **options
+        )
 
 
 def test_constant_velocity_returns_preferred() -> None:
@@ -107,7 +119,9 @@ def test_constant_velocity_head_on_collides() -> None:
     pos, vel, pref, axes = head_on()
     overlapped = False
     for _ in range(100):
-        overlapped |= ellipses_overlap(pos[0], pos[1], np.array([1.0, 0]), np.array([-1.0, 0]), axes[0])
+        overlapped |= ellipses_overlap(
+            pos[0], pos[1], np.array([1.0, 0]), np.array([-1.0, 0]), axes[0]
+        )
         vel, pos = _core.step_crowd(pos, vel, pref, axes, motion="cv")
     assert overlapped
 

@@ -161,7 +161,9 @@ impl Ellipse {
 
     /// A counter-clockwise convex polygon with `sides` sides (clamped to 3..=[`MAX_SIDES`]) that
     /// contains the ellipse: the regular polygon circumscribing the unit circle, scaled to the
-    /// axes (an affine map keeps the containment) and rotated to the heading.
+    /// axes (an affine map keeps the containment) and rotated to the heading. A vertex, not a
+    /// flat side, points along the heading: flat fronts make head-on pairs stall (their
+    /// avoidance has no sideways component).
     pub fn polygon(&self, sides: usize) -> Polygon {
         let n = sides.clamp(3, MAX_SIDES);
         let step = std::f64::consts::TAU / n as f64;
@@ -169,7 +171,7 @@ impl Ellipse {
         let (c, s) = (self.heading.x, self.heading.y);
         let mut p = Polygon::default();
         for k in 0..n {
-            let t = (k as f64 + 0.5) * step;
+            let t = k as f64 * step;
             let x = self.a * r * t.cos();
             let y = self.b * r * t.sin();
             p.push(V2::new(c * x - s * y, s * x + c * y));
@@ -179,20 +181,13 @@ impl Ellipse {
 }
 
 /// Heading of a pedestrian (people are assumed to face where they walk): the direction of its
-/// velocity while it walks at least half its preferred speed; a slowed-down pedestrian
-/// (stepping aside, waiting) keeps facing its preferred direction rather than turning its body
-/// to every small sidestep; then any non-zero velocity; else the x axis.
+/// preferred velocity, else of its velocity, else the x axis. Facing the intended direction
+/// rather than the instantaneous velocity keeps the ellipse from turning with every avoidance
+/// sidestep; a turning ellipse sweeps into its neighbours, which breaks the velocity obstacles'
+/// no-overlap guarantee (they assume fixed shapes).
 pub fn heading(vel: V2, pref_vel: V2) -> V2 {
     const MIN_SPEED: f64 = 1e-9;
-    let speed = vel.norm();
-    let pref_speed = pref_vel.norm();
-    let walking = speed.is_finite() && speed > MIN_SPEED && !(speed < 0.5 * pref_speed);
-    let order = if walking {
-        [vel, pref_vel]
-    } else {
-        [pref_vel, vel]
-    };
-    for v in order {
+    for v in [pref_vel, vel] {
         let n = v.norm();
         if n.is_finite() && n > MIN_SPEED {
             return v / n;
