@@ -1,8 +1,9 @@
 """Accuracy and per-frame update time of DensePeds (motion only) against established trackers.
 
 Every tracker gets identical input per frame: the sequence's public det.txt boxes (x1, y1, x2, y2)
-and scores. Score convention, the same for all trackers: a det file whose scores already lie in
-[0, 1] (MOT17) is used as is; otherwise (MOT15: e.g. -0.7 .. 138.9) its scores are min-max
+and scores. Score convention, the same for all trackers and the same as the CLI's det.txt input
+(``motio.read_detections``' default, see ``motio.score_scale``): a det file whose scores already lie
+in [0, 1] (MOT17) is used as is; otherwise (MOT15: e.g. -0.7 .. 138.9) its scores are min-max
 rescaled per file to [0, 1]. No detection is dropped before tracking.
 Tracker output is written in MOTChallenge format and scored with densepeds.evaluate (trackeval).
 The update time is the median (and p95) wall time of one update call per frame, including the
@@ -53,22 +54,23 @@ class Sequence:
 
 
 def load_sequence(path: Path) -> Sequence:
+    """Frames of boxes and scores, read with motio's default score mapping (the CLI's too)."""
     info = motio.read_seqinfo(path)
-    dets = motio.read_detections(path / "det" / "det.txt")
-    all_scores = np.concatenate([d.scores for d in dets.values()]) if dets else np.zeros(0)
-    lo, hi = (float(all_scores.min()), float(all_scores.max())) if len(all_scores) else (0.0, 1.0)
-    if lo >= 0.0 and hi <= 1.0:
-        scale, note = None, f"as is ({lo:.3g}..{hi:.3g})"
+    det_path = path / "det" / "det.txt"
+    dets = motio.read_detections(det_path)
+    raw = motio.read_detections(det_path, normalize="none")  # only to describe the mapping
+    raw_scores = np.concatenate([d.scores for d in raw.values()]) if raw else np.zeros(0)
+    scale = motio.score_scale(raw_scores)
+    if not len(raw_scores):
+        note = "no detections"
+    elif scale is None:
+        note = f"as is ({raw_scores.min():.3g}..{raw_scores.max():.3g})"
     else:
-        scale, note = (lo, hi), f"min-max rescaled from {lo:.3g}..{hi:.3g}"
-    frames = []
-    for f in range(1, info.length + 1):
-        d = dets.get(f)
-        if d is None:
-            frames.append((np.zeros((0, 4), np.float32), np.zeros(0, np.float32)))
-            continue
-        s = d.scores if scale is None else (d.scores - scale[0]) / (scale[1] - scale[0])
-        frames.append((d.boxes, s.astype(np.float32)))
+        note = f"min-max rescaled from {scale[0]:.3g}..{scale[1]:.3g}"
+    empty = (np.zeros((0, 4), np.float32), np.zeros(0, np.float32))
+    frames = [
+        (dets[f].boxes, dets[f].scores) if f in dets else empty for f in range(1, info.length + 1)
+    ]
     return Sequence(path, info, frames, note)
 
 

@@ -25,7 +25,7 @@ def write(tmp_path: Path, lines: list[str], name: str = "det.txt") -> Path:
 
 
 def test_read_detections_converts_to_corner_boxes_and_keeps_any_score(tmp_path: Path) -> None:
-    dets = motio.read_detections(write(tmp_path, DET_LINES))
+    dets = motio.read_detections(write(tmp_path, DET_LINES), normalize="none")
     assert sorted(dets) == [1, 3]
     np.testing.assert_allclose(dets[1].boxes, [[10, 20, 40, 60], [100, 200, 110, 220]])
     np.testing.assert_allclose(dets[1].scores, [0.9, -3.5], rtol=1e-6)
@@ -35,9 +35,47 @@ def test_read_detections_converts_to_corner_boxes_and_keeps_any_score(tmp_path: 
 
 def test_read_detections_min_score_and_unsorted_frames(tmp_path: Path) -> None:
     lines = [DET_LINES[2], DET_LINES[0], DET_LINES[1]]  # frame 3 first: files need not be sorted
-    dets = motio.read_detections(write(tmp_path, lines), min_score=0.0)
+    dets = motio.read_detections(write(tmp_path, lines), min_score=0.0, normalize="none")
     assert sorted(dets) == [1, 3]
     assert len(dets[1]) == 1 and dets[1].scores[0] == pytest.approx(0.9)
+
+
+def test_read_detections_rescales_out_of_range_scores_per_file(tmp_path: Path) -> None:
+    # -3.5 .. 93.7 is not a [0, 1] file: min-max over the whole file, before min_score.
+    dets = motio.read_detections(write(tmp_path, DET_LINES))
+    span = 93.7 - -3.5
+    np.testing.assert_allclose(dets[1].scores, [(0.9 + 3.5) / span, 0.0], rtol=1e-6)
+    np.testing.assert_allclose(dets[3].scores, [1.0])
+    kept = motio.read_detections(write(tmp_path, DET_LINES), min_score=0.5)
+    assert sorted(kept) == [3]  # 0.9 maps to 0.045, below 0.5 in the mapped scale
+    forced = motio.read_detections(
+        write(tmp_path, ["1,-1,0,0,1,1,0.2", "1,-1,0,0,1,1,0.6"]), normalize="minmax"
+    )
+    np.testing.assert_allclose(forced[1].scores, [0.0, 1.0])
+
+
+def test_read_detections_keeps_unit_range_files_and_constant_scores_map_to_one(
+    tmp_path: Path,
+) -> None:
+    unit = ["1,-1,0,0,1,1,0.25", "2,-1,0,0,1,1,1.0", "2,-1,0,0,1,1,0"]
+    dets = motio.read_detections(write(tmp_path, unit))
+    np.testing.assert_allclose(dets[1].scores, [0.25])
+    np.testing.assert_allclose(dets[2].scores, [1.0, 0.0])
+    const = motio.read_detections(write(tmp_path, ["1,-1,0,0,1,1,7", "2,-1,0,0,1,1,7"]))
+    assert [float(d.scores[0]) for d in const.values()] == [1.0, 1.0]
+
+
+def test_score_scale_rules_and_bad_mode(tmp_path: Path) -> None:
+    assert motio.score_scale([0.0, 0.5, 1.0]) is None
+    assert motio.score_scale([-1.0, 3.0]) == (-1.0, 3.0)
+    assert motio.score_scale([0.2, 0.4], "minmax") == (0.2, 0.4)
+    assert motio.score_scale([-1.0, 3.0], "none") is None
+    assert motio.score_scale([], "minmax") is None
+    np.testing.assert_allclose(motio.rescale_scores([-1.0, 0.0, 3.0], (-1.0, 3.0)), [0, 0.25, 1])
+    with pytest.raises(InputError, match="normalize"):
+        motio.score_scale([1.0], "rank")  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="normalize"):
+        motio.read_detections(write(tmp_path, DET_LINES), normalize="zscore")  # type: ignore[arg-type]
 
 
 def test_read_detections_seven_columns_and_blank_lines(tmp_path: Path) -> None:
@@ -188,7 +226,13 @@ def test_real_sequences_parse() -> None:
     assert min(dets) >= 1 and max(dets) <= info.length
     gt = motio.read_gt(seq / "gt" / "gt.txt")
     assert gt.shape[1] == 9 and set(np.unique(gt[:, 7])) >= {1.0}
-    # MOT15 det scores are outside [0, 1]
-    mot15 = motio.read_detections(shared_path("data", "PETS09-S2L1-dev", "det", "det.txt"))
-    scores = np.concatenate([d.scores for d in mot15.values()])
-    assert scores.max() > 1.0
+    # MOT15 det scores are outside [0, 1]; by default they are read min-max rescaled into it,
+    # while MOT17's [0, 1] scores come through unchanged.
+    pets = shared_path("data", "PETS09-S2L1-dev", "det", "det.txt")
+    raw = np.concatenate([d.scores for d in motio.read_detections(pets, normalize="none").values()])
+    assert raw.max() > 1.0 and raw.min() < 0.0
+    mapped = np.concatenate([d.scores for d in motio.read_detections(pets).values()])
+    np.testing.assert_allclose(mapped, (raw - raw.min()) / (raw.max() - raw.min()), atol=1e-6)
+    mot17_raw = motio.read_detections(seq / "det" / "det.txt", normalize="none")
+    for f, d in dets.items():
+        np.testing.assert_array_equal(d.scores, mot17_raw[f].scores)

@@ -1,7 +1,8 @@
 """MOTChallenge text files: sequence info, detections, ground truth and tracker output.
 
 Layouts (one object per line, comma separated):
-  det.txt     frame, -1, left, top, width, height, score[, x, y, z]   (score: any range)
+  det.txt     frame, -1, left, top, width, height, score[, x, y, z]   (score: any range; read
+              into [0, 1] by default, see score_scale)
   gt.txt      frame, id, left, top, width, height, flag, class, visibility   (MOT16/17/20)
               frame, id, left, top, width, height, flag, x, y, z             (MOT15)
   tracks.txt  frame, id, left, top, width, height, conf, -1, -1, -1
@@ -16,6 +17,7 @@ import tempfile
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -24,12 +26,16 @@ from densepeds.errors import DetFileError, InputError
 from densepeds.types import Detections
 
 __all__ = [
+    "SCORE_MAPPINGS",
+    "ScoreMapping",
     "SeqInfo",
     "read_detections",
     "read_gt",
     "read_mot_rows",
     "read_seqinfo",
     "read_tracks",
+    "rescale_scores",
+    "score_scale",
     "write_tracks",
 ]
 
@@ -172,18 +178,70 @@ def _check_sizes(
         )
 
 
+ScoreMapping = Literal["auto", "minmax", "none"]
+SCORE_MAPPINGS: tuple[str, ...] = ("auto", "minmax", "none")
+
+
+def score_scale(
+    scores: npt.ArrayLike, normalize: ScoreMapping = "auto"
+) -> tuple[float, float] | None:
+    """The ``(lo, hi)`` that :func:`read_detections` maps to ``[0, 1]``, or None for no mapping.
+
+    This is the project's one rule for detection score ranges (the tracker's score thresholds
+    are numbers in ``[0, 1]``):
+
+    - ``"auto"`` (default): scores already within ``[0, 1]`` (MOT16/17/20 files, our detectors)
+      are kept; any other file (MOT15 holds e.g. -0.7 .. 139) is min-max rescaled per file.
+    - ``"minmax"``: always min-max rescale per file.
+    - ``"none"``: keep the file's scores as they are.
+
+    Min-max (not a rank/percentile mapping) because it keeps the detector's own spacing of
+    confidences: on the MOT15 files the 99th percentile sits at 0.8-0.95 of the maximum, so one
+    outlier does not squash the rest, while a rank mapping would force every file to the same
+    uniform distribution whatever its detector's quality. A file whose scores are all equal (and
+    outside [0, 1]) carries no confidence information and maps to 1.
+    """
+    if normalize not in SCORE_MAPPINGS:
+        raise InputError(f"normalize must be one of {', '.join(SCORE_MAPPINGS)}, got {normalize!r}")
+    s = np.asarray(scores, dtype=np.float64)
+    if normalize == "none" or s.size == 0:
+        return None
+    lo, hi = float(s.min()), float(s.max())
+    if normalize == "auto" and lo >= 0.0 and hi <= 1.0:
+        return None
+    return lo, hi
+
+
+def rescale_scores(scores: npt.ArrayLike, scale: tuple[float, float] | None) -> FloatArray:
+    """Apply a :func:`score_scale` result: ``(s - lo) / (hi - lo)``; all ones when ``hi == lo``."""
+    s = np.asarray(scores, dtype=np.float64)
+    if scale is None:
+        return s
+    lo, hi = scale
+    if hi <= lo:
+        return np.ones_like(s)
+    return np.clip((s - lo) / (hi - lo), 0.0, 1.0)
+
+
 def read_detections(
-    path: str | os.PathLike[str], *, min_score: float | None = None
+    path: str | os.PathLike[str],
+    *,
+    min_score: float | None = None,
+    normalize: ScoreMapping = "auto",
 ) -> dict[int, Detections]:
     """Read a det.txt into {frame: Detections}; frames without detections are absent.
 
-    Scores are kept as they are (MOT15 uses arbitrary ranges, even negative). ``min_score`` drops
-    detections scoring below it. An empty file gives ``{}``.
+    Scores are mapped into ``[0, 1]`` by ``normalize`` (see :func:`score_scale`: by default a
+    file already in ``[0, 1]`` is untouched and any other range is min-max rescaled over the whole
+    file). ``min_score`` then drops detections scoring below it, in the mapped scale.
+    An empty file gives ``{}``.
     """
     data, nos = read_mot_rows(path, min_cols=7, what="detections")
     if len(data) == 0:
+        score_scale(data[:, 6], normalize)  # still reject a bad ``normalize``
         return {}
     _check_sizes(path, data, nos)
+    data[:, 6] = rescale_scores(data[:, 6], score_scale(data[:, 6], normalize))
     if min_score is not None:
         data = data[data[:, 6] >= min_score]
     order = np.argsort(data[:, 0], kind="stable")
