@@ -47,6 +47,9 @@ def session_options(threads: int | None) -> ort.SessionOptions:
 
 def make_session(model: onnx.ModelProto | Path, threads: int | None) -> ort.InferenceSession:
     data = model.SerializeToString() if isinstance(model, onnx.ModelProto) else str(model)
+    # The shipped int8 export makes onnxruntime's default logger warn about a deprecated
+    # attribute at every load; that is noise to a user, so only errors are logged.
+    ort.set_default_logger_severity(3)
     try:
         return ort.InferenceSession(
             data, sess_options=session_options(threads), providers=["CPUExecutionProvider"]
