@@ -106,9 +106,16 @@ def with_dynamic_batch(model: onnx.ModelProto) -> onnx.ModelProto:
     return out
 
 
-def batched_session(path: Path, threads: int | None) -> tuple[ort.InferenceSession, bool]:
-    """A session accepting any batch size, and whether the model had to be rewritten for it."""
+def batched_session(
+    path: Path, threads: int | None, *, dequantize: bool = False
+) -> tuple[ort.InferenceSession, bool]:
+    """A session accepting any batch size, and whether the model had to be rewritten for it.
+
+    ``dequantize`` runs a float copy of a QDQ-quantised model (see :func:`dequantized`).
+    """
     model = load_model(path)
+    if dequantize:
+        model = dequantized(model)
     if not has_fixed_batch(model):
         return make_session(model, threads), False
     return make_session(with_dynamic_batch(model), threads), True
@@ -162,3 +169,62 @@ def with_weighted_final_pool(model: onnx.ModelProto) -> tuple[onnx.ModelProto, t
         onnx.helper.make_tensor_value_info(POOL_WEIGHTS, onnx.TensorProto.FLOAT, ["N", 1, h, w])
     )
     return out, (h, w)
+
+
+def dequantized(model: onnx.ModelProto) -> onnx.ModelProto:
+    """A float copy of a QDQ-quantised model: int8 weights folded to float, activation
+    Quantize/Dequantize pairs removed.
+
+    onnxruntime cannot fuse this export's QDQ pattern (Conv -> SiLU -> Q) into integer kernels,
+    so it runs float convolutions *plus* ~700 Q/DQ passes over the activations; without them the
+    same convolutions run about twice as fast. Outputs differ (no activation rounding): check
+    accuracy before relying on it (models/README.md has the figures).
+    """
+    out = onnx.ModelProto()
+    out.CopyFrom(model)
+    graph = out.graph
+    inits = {init.name: init for init in graph.initializer}
+    rename: dict[str, str] = {}
+    kept: list[onnx.NodeProto] = []
+    folded: list[onnx.TensorProto] = []
+    for node in graph.node:
+        if node.op_type == "DequantizeLinear" and node.input[0] in inits:
+            folded.append(_fold_dequantize(node, inits))
+        elif node.op_type in ("QuantizeLinear", "DequantizeLinear"):
+            rename[node.output[0]] = node.input[0]
+        else:
+            kept.append(node)
+
+    def source(name: str) -> str:
+        while name in rename:
+            name = rename[name]
+        return name
+
+    for node in kept:
+        for i, name in enumerate(node.input):
+            node.input[i] = source(name)
+    for value in graph.output:
+        if value.name in rename:
+            kept.append(onnx.helper.make_node("Identity", [source(value.name)], [value.name]))
+    used = {name for node in kept for name in node.input}
+    initializers = [i for i in list(graph.initializer) + folded if i.name in used]
+    del graph.node[:]
+    graph.node.extend(kept)
+    del graph.initializer[:]
+    graph.initializer.extend(initializers)
+    del graph.value_info[:]
+    return out
+
+
+def _fold_dequantize(node: onnx.NodeProto, inits: dict[str, onnx.TensorProto]) -> onnx.TensorProto:
+    """(q - zero_point) * scale of a constant DequantizeLinear, per-tensor or per-axis."""
+    q = numpy_helper.to_array(inits[node.input[0]]).astype(np.float32)
+    scale = numpy_helper.to_array(inits[node.input[1]]).astype(np.float32)
+    has_zp = len(node.input) > 2 and node.input[2]
+    zero = numpy_helper.to_array(inits[node.input[2]]).astype(np.float32) if has_zp else 0 * scale
+    if scale.ndim == 1 and scale.size > 1:
+        axis = next((a.i for a in node.attribute if a.name == "axis"), 1)
+        shape = [1] * q.ndim
+        shape[axis] = -1
+        scale, zero = scale.reshape(shape), zero.reshape(shape)
+    return numpy_helper.from_array(((q - zero) * scale).astype(np.float32), node.output[0])

@@ -61,6 +61,7 @@ class YoloSegDetector:
         with_masks: bool = True,
         threads: int | None = None,
         person_class: int = 0,
+        dequantize: bool = False,
     ) -> None:
         if not 0.0 <= score_threshold <= 1.0:
             raise ParameterError(f"score_threshold must be in [0, 1], got {score_threshold}")
@@ -73,7 +74,9 @@ class YoloSegDetector:
         self.with_masks = with_masks
         self.person_class = person_class
         self.path = model
-        self.session, self.rewritten = onnxutil.batched_session(model, threads)
+        self.session, self.rewritten = onnxutil.batched_session(
+            model, threads, dequantize=dequantize
+        )
         self.batch_views = batch_views
         self._read_contract()
 
