@@ -141,7 +141,12 @@ impl MotionModel for Orca {
             self.lines.clear();
             for &(_, j) in &self.neighbors {
                 let b = &agents[j];
-                let (rel_pos, rel_vel) = (b.pos - a.pos, a.vel - b.vel);
+                let (mut rel_pos, rel_vel) = (b.pos - a.pos, a.vel - b.vel);
+                if rel_pos.norm_squared() < 1e-18 {
+                    // Coincident: a tiny offset by index order, so the two push apart instead
+                    // of computing the same velocity.
+                    rel_pos = V2::new(if i < j { 1e-6 } else { -1e-6 }, 0.0);
+                }
                 let avoid = match self.footprint {
                     Footprint::Ellipse => {
                         let sum = minkowski_sum(&self.shapes[j], &minus_me);
