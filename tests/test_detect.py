@@ -10,7 +10,7 @@ import onnx
 import pytest
 from conftest import shared_path
 from densepeds.detect import make_detector
-from densepeds.detect.onnxutil import load_model, make_session, with_dynamic_batch
+from densepeds.detect.onnxutil import dequantized, load_model, make_session, with_dynamic_batch
 from densepeds.detect.precomputed import PrecomputedDetector
 from densepeds.detect.tiling import (
     auto_grid,
@@ -325,3 +325,42 @@ def test_yoloseg_tiles_map_back_to_the_frame(tmp_path: Path) -> None:
     got = sorted(dets.boxes.tolist())
     assert len(got) == 3
     np.testing.assert_allclose(got, sorted(expected), atol=0.05)
+
+
+def test_dequantized_copy_folds_weights_and_drops_activation_rounding() -> None:
+    """DQ(int8 per-channel weights) -> Conv -> Q -> DQ: the float copy equals the original up to
+    the activation rounding (half a quantisation step) and has no Q/DQ left."""
+    rng = np.random.default_rng(5)
+    weights = rng.integers(-5, 6, (3, 2, 1, 1)).astype(np.int8)
+    w_scale = np.array([0.1, 0.2, 0.05], np.float32)
+    act_scale = np.float32(0.02)
+    inits = [
+        numpy_helper.from_array(weights, "wq"),
+        numpy_helper.from_array(w_scale, "ws"),
+        numpy_helper.from_array(np.zeros(3, np.int8), "wz"),
+        numpy_helper.from_array(act_scale, "as"),
+        numpy_helper.from_array(np.int8(0), "az"),
+    ]
+    nodes = [
+        helper.make_node("DequantizeLinear", ["wq", "ws", "wz"], ["w"], axis=0),
+        helper.make_node("Conv", ["x", "w"], ["c"]),
+        helper.make_node("QuantizeLinear", ["c", "as", "az"], ["cq"]),
+        helper.make_node("DequantizeLinear", ["cq", "as", "az"], ["y"]),
+    ]
+    graph = helper.make_graph(
+        nodes,
+        "qdq",
+        [helper.make_tensor_value_info("x", TensorProto.FLOAT, [1, 2, 4, 4])],
+        [helper.make_tensor_value_info("y", TensorProto.FLOAT, [1, 3, 4, 4])],
+        initializer=inits,
+    )
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 13)])
+    onnx.checker.check_model(model)
+    floated = dequantized(model)
+    assert not {n.op_type for n in floated.graph.node} & {"QuantizeLinear", "DequantizeLinear"}
+    x = rng.random((1, 2, 4, 4), dtype=np.float32)
+    quant = make_session(model, 1).run(None, {"x": x})[0]
+    exact = make_session(floated, 1).run(None, {"x": x})[0]
+    reference = np.einsum("oc,nchw->nohw", weights[:, :, 0, 0] * w_scale[:, None], x)
+    np.testing.assert_allclose(exact, reference, rtol=1e-5, atol=1e-6)
+    assert np.abs(quant - exact).max() <= act_scale / 2 + 1e-6
