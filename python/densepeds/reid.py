@@ -90,7 +90,8 @@ class ReID:
         if len(inputs) != 1 or len(inputs[0].shape) != 4 or len(outputs) < 1:
             raise ModelError(
                 f"{path}: expected a re-ID model with one image input [N,3,H,W] or [N,H,W,3] "
-                f"and an embedding output [N,D]; got inputs {inputs}, outputs {outputs}"
+                f"and an embedding output [N,D] (models/README.md lists the supported ones); "
+                f"got inputs {inputs}, outputs {outputs}"
             )
         shape = inputs[0].shape
         if shape[1] == 3:
