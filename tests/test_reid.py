@@ -160,3 +160,11 @@ def test_mot20_same_person_is_nearest() -> None:
     for name in ("bbox (all)", "bbox", "segmented"):
         people, correct, _ = figures[name]
         assert people >= 20 and correct >= 0.8, name
+
+
+def test_model_given_by_name_is_looked_up(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    fixed_batch_mars_like(tmp_path / "mars-like.onnx")
+    monkeypatch.setenv("DENSEPEDS_MODEL_DIR", str(tmp_path))
+    assert ReID("mars-like.onnx", threads=1).path == tmp_path / "mars-like.onnx"
+    with pytest.raises(ModelError, match="not found"):
+        ReID("absent.onnx")

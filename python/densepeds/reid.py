@@ -81,7 +81,7 @@ class ReID:
             raise ParameterError(f"batch_size must be >= 1, got {batch_size}")
         if kind != "auto" and kind not in MODEL_KINDS:
             raise ParameterError(f"kind must be 'auto' or one of {sorted(MODEL_KINDS)}, got {kind}")
-        path = find_model(DEFAULT_MODEL) if model is None else find_model(str(model), model)
+        path = find_model(DEFAULT_MODEL) if model is None else find_model(str(model))
         self.path: Path = path
         self.batch_size = batch_size
         self.session, self.rewritten = onnxutil.batched_session(path, threads)

@@ -42,7 +42,7 @@ def make_detector(
 
     if kind not in DETECTOR_KINDS:
         raise ParameterError(f"detector kind must be one of {DETECTOR_KINDS}, got {kind!r}")
-    path = find_model(DEFAULT_MODELS[kind]) if model is None else find_model(str(model), model)
+    path = find_model(DEFAULT_MODELS[kind]) if model is None else find_model(str(model))
     extra: dict[str, object] = dict(options)
     if score_threshold is not None:
         extra["score_threshold"] = score_threshold
