@@ -246,7 +246,11 @@ def test_precomputed_detector_reads_det_file() -> None:
     assert len(second) == int((rows[:, 0] == 2).sum())
     assert first.masks is None
     np.testing.assert_allclose(first.boxes[0], [500, 158, 530.979, 228.299], rtol=1e-5)
-    assert first.scores[0] == pytest.approx(93.673)  # MOT15 scores keep their range
+    # MOT15 scores (e.g. 93.673) are min-max mapped into [0, 1] over the file (motio's rule).
+    lo, hi = rows[:, 6].min(), rows[:, 6].max()
+    assert first.scores[0] == pytest.approx((93.673 - lo) / (hi - lo), abs=1e-5)
+    raw = PrecomputedDetector(path, normalize="none")(frame_number=1)
+    assert raw.scores[0] == pytest.approx(93.673)
     assert len(det(frame_number=10**6)) == 0
 
 

@@ -7,15 +7,16 @@ import os
 import numpy as np
 import numpy.typing as npt
 
-from densepeds.motio import read_detections
+from densepeds.motio import ScoreMapping, read_detections
 from densepeds.types import Detections
 
 
 class PrecomputedDetector:
     """Returns the det file's detections frame by frame; masks None (the whole box).
 
-    Frames are counted from ``first_frame`` on each call, or chosen with ``frame=`` explicitly.
-    Scores keep the file's range (MOT15 has e.g. 93.7 or negative values).
+    Frames are counted from ``first_frame`` on each call, or chosen with ``frame_number=``.
+    Scores are mapped into [0, 1] by densepeds.motio's rule (``normalize``; MOT15 files use e.g.
+    93.7 or negative values); ``score_threshold`` applies in the mapped scale.
     """
 
     def __init__(
@@ -24,8 +25,9 @@ class PrecomputedDetector:
         *,
         score_threshold: float | None = None,
         first_frame: int = 1,
+        normalize: ScoreMapping = "auto",
     ) -> None:
-        self.by_frame = read_detections(path, min_score=score_threshold)
+        self.by_frame = read_detections(path, min_score=score_threshold, normalize=normalize)
         self.first_frame = first_frame
         self.next_frame = first_frame
 
