@@ -22,7 +22,7 @@ def step(t: Tracker, boxes: list[list[float]]) -> Tracks:
 
 
 def test_tentative_until_n_init_and_deleted_after_max_age() -> None:
-    t = Tracker("cv", n_init=2, max_age=3)
+    t = Tracker("cv", n_init=2, max_age=3, output_lost=0)  # report matched tracks only
     assert len(step(t, [box(100, 100)]).ids) == 0
     out = step(t, [box(102, 100)])
     assert out.ids.tolist() == [1] and out.det_index.tolist() == [0]
@@ -162,11 +162,24 @@ def test_embedding_dimension_must_not_change() -> None:
 
 
 def test_any_score_range_and_empty_frames() -> None:
-    t = Tracker("cv", n_init=1)
-    out = t.update(np.array([box(100, 100), box(300, 100)]), np.array([93.7, -12.0]))
-    assert len(out.ids) == 2
+    boxes = np.array([box(100, 100), box(300, 100)])
+    # Any score is accepted; the default thresholds are for [0, 1] scores, so -12 starts no track.
+    out = Tracker("cv", n_init=1).update(boxes, np.array([93.7, -12.0]))
+    assert out.det_index.tolist() == [0]
+    inf = float("-inf")
+    t = Tracker("cv", n_init=1, det_threshold=inf, new_track_threshold=inf, output_lost=0)
+    assert len(t.update(boxes, np.array([93.7, -12.0])).ids) == 2
     assert len(t.update(np.zeros((0, 4)), np.zeros(0)).ids) == 0
     assert len(t.update([], []).ids) == 0
+
+
+def test_default_thresholds_low_scores_extend_tracks_but_start_none() -> None:
+    t = Tracker("cv", n_init=1)
+    assert step(t, [box(100, 100)]).ids.tolist() == [1]
+    low = np.array([box(103, 100), box(400, 100)])
+    out = t.update(low, np.array([0.1, 0.1]))
+    assert out.ids.tolist() == [1] and out.det_index.tolist() == [0]
+    assert t.params["det_threshold"] == 0.3 and t.params["second_pass"] is True
 
 
 @pytest.mark.parametrize(
@@ -183,7 +196,7 @@ def test_any_score_range_and_empty_frames() -> None:
         {"det_threshold": float("nan")},
         {"det_threshold": True},
         {"max_speed": -1.0},
-        {"output_lost": 100},
+        {"output_lost": -1},
     ],
 )
 def test_bad_parameters_raise(params: dict[str, object]) -> None:
@@ -230,3 +243,13 @@ def test_real_detections_mot17_02_motion_only() -> None:
     # A dense scene with ~30 people: ids are reused over many frames, not restarted every frame.
     assert 10 <= len(seen) <= 150
     assert np.median(list(seen.values())) >= 10
+
+
+def test_pure_params_give_the_plain_two_stage_tracker() -> None:
+    from densepeds.tracking import PURE_PARAMS
+
+    t = Tracker("frvo", n_init=1, **PURE_PARAMS)
+    assert {k: t.params[k] for k in PURE_PARAMS} == PURE_PARAMS
+    out = t.update(np.array([box(100, 100)]), np.array([0.01]))  # every detection starts tracks
+    assert out.ids.tolist() == [1]
+    assert len(t.update([], []).ids) == 0  # only matched tracks are reported

@@ -6,8 +6,10 @@ and ``cv`` for the method's ablation), then matched in stages, each solved optim
 ``gate_radius`` box heights), then IoU between predicted boxes and the remaining detections. With
 ``embeddings=None`` it is a motion-only tracker.
 
-Parameters (keyword arguments). Defaults were tuned motion-only on the six dev sequences together
-(benchmarks/results/tracker.md); ``recovery=False, size_smoothing=0`` is the method's pure form.
+Parameters (keyword arguments). Defaults were tuned motion-only on the six dev sequences together,
+never per sequence (benchmarks/results/tracker.md). The method's pure form (two optimal stages on
+every detection, nothing else) is ``det_threshold=-inf, new_track_threshold=-inf,
+second_pass=False, recovery=False, size_smoothing=0, output_lost=0`` (``PURE_PARAMS``).
 
 ==========================  =======  ===========================================================
 name                        default  meaning
@@ -18,11 +20,14 @@ appearance_threshold        0.2      lambda: largest cosine distance for an appe
 gallery_size                20       embeddings kept per track
 gate_radius                 1.0      rho in track box heights (``inf`` disables gating)
 iou_threshold               0.3      smallest IoU for a motion match
-det_threshold               -inf     detections scoring below take no part in the main stages
-new_track_threshold         -inf     smallest score that starts a track
-second_pass                 False    ByteTrack-style pass on [low_threshold, det_threshold)
-low_threshold               -inf     lowest score used by the second pass
+det_threshold               0.3      detections scoring below take no part in the main stages
+new_track_threshold         0.3      smallest score that starts a track (low-score detections
+                                     only extend tracks)
+second_pass                 True     ByteTrack-style pass on [low_threshold, det_threshold)
+low_threshold               0.05     lowest score used by the second pass
 low_iou_threshold           0.5      smallest IoU for a second-pass match
+low_max_age                 60       tracks unmatched up to this many frames join the second
+                                     pass (0: only those matched last frame, as ByteTrack)
 recovery                    True     OC-SORT-style re-match of lost tracks by their last box
 recovery_iou_threshold      0.3      smallest IoU for a recovery match
 velocity_smoothing          0.5      weight of the newly observed velocity
@@ -31,12 +36,15 @@ size_smoothing              0.5      weight of the previous box size (0 = detect
 ellipse_l_scale             0.15     FRVO ellipse l = scale * box height (the face)
 ellipse_w_scale             0.15     FRVO ellipse w = scale * box width (kept small: overlap
                                      in a front view is occlusion, not collision)
-output_lost                 0        also report tracks this many frames after their last match
+output_lost                 5        also report tracks (at the motion model's prediction) this
+                                     many frames after their last match
 neighbor_radius, max_neighbors, time_horizon, max_speed, polygon_sides: the motion model's.
 ==========================  =======  ===========================================================
 
-Scores may have any range (MOT15 det files hold e.g. 93.7 or negative values), so thresholds are
-plain numbers compared with the scores given.
+Score thresholds are for scores in [0, 1], as our detectors give and as
+``densepeds.motio.read_detections`` maps det files by default (files already in [0, 1] untouched,
+others min-max rescaled; see ``motio.score_scale``). Scores of any range are accepted and compared
+as they are, so pass thresholds that suit them (or ``-inf``) when feeding unmapped scores.
 """
 
 from __future__ import annotations
@@ -50,6 +58,16 @@ from densepeds import _core
 from densepeds.errors import InputError, ParameterError
 
 MOTION_MODELS = ("frvo", "rvo", "sf", "cv")
+
+#: Keyword arguments giving the DensePeds paper's plain tracker (see the module docstring).
+PURE_PARAMS: dict[str, float | int | bool] = {
+    "det_threshold": float("-inf"),
+    "new_track_threshold": float("-inf"),
+    "second_pass": False,
+    "recovery": False,
+    "size_smoothing": 0.0,
+    "output_lost": 0,
+}
 
 
 class Tracks(NamedTuple):

@@ -5,8 +5,8 @@
 //! 1. appearance: cosine distance to the track's gallery (<= lambda), among detections within rho
 //!    of the predicted centre (only when embeddings are given);
 //! 2. motion: IoU between predicted boxes and the remaining detections (>= `iou_threshold`);
-//! 3. optional ByteTrack-style second pass on low-score detections;
-//! 4. optional OC-SORT-style recovery by the last observed box;
+//! 3. ByteTrack-style second pass: low-score detections can extend (never start) tracks;
+//! 4. OC-SORT-style recovery of lost tracks by their last observed box;
 //!
 //! then update, age and delete tracks and start new ones.
 
@@ -289,7 +289,7 @@ impl Tracker {
         let pairs = self.matcher.solve(nt, n, &edges, 1.0 - p.iou_threshold);
         record(&pairs, &mut track_det, &mut det_track);
 
-        // Stage 3: low-score detections for tracks seen last frame.
+        // Stage 3: low-score detections for tracks unmatched for at most `low_max_age` frames.
         if p.second_pass {
             let low_index = DetIndex::new(&dets, |j| {
                 scores[j] >= p.low_threshold && scores[j] < p.det_threshold
@@ -299,7 +299,7 @@ impl Tracker {
                 &track_det,
                 &det_track,
                 &low_index,
-                &|t| t.time_since_update == 0,
+                &|t| t.time_since_update <= p.low_max_age,
                 &|t| t.predicted,
                 p.low_iou_threshold,
                 &mut edges,

@@ -3,9 +3,12 @@
 use assoc::{Embeddings, ParamValue, TrackError, TrackOutput, Tracker, TrackerParams};
 use frvo::MotionKind;
 
+/// Defaults with constant velocity and only matched tracks reported (the lifecycle tests count
+/// reported tracks).
 fn cv_params() -> TrackerParams {
     TrackerParams {
         motion: MotionKind::ConstantVelocity,
+        output_lost: 0,
         ..TrackerParams::default()
     }
 }
@@ -185,6 +188,72 @@ fn second_pass_uses_low_score_detections_only_when_enabled() {
         // A low-score detection never starts a track.
         assert_eq!(t.num_tracks(), 1);
     }
+}
+
+#[test]
+fn second_pass_reaches_tracks_lost_up_to_low_max_age() {
+    // A confirmed track misses two frames, then only a low-score detection (0.2, under
+    // det_threshold 0.3) sits on its prediction: it extends the track when the second pass
+    // covers tracks lost for 2 frames, and otherwise is dropped (it may not start a track).
+    for (low_max_age, expect) in [(0u32, None), (1, None), (2, Some(1u64)), (60, Some(1))] {
+        let mut t = Tracker::new(TrackerParams {
+            n_init: 2,
+            low_max_age,
+            ..cv_params()
+        })
+        .unwrap();
+        for k in 0..3 {
+            run(&mut t, &[bx(100.0 + 2.0 * f64::from(k), 100.0)]);
+        }
+        run(&mut t, &[]);
+        run(&mut t, &[]);
+        let out = t.update(&bx(110.0, 100.0), &[0.2], None).unwrap();
+        assert_eq!(
+            out.first().map(|o| o.id),
+            expect,
+            "low_max_age={low_max_age}"
+        );
+        assert_eq!(t.num_tracks(), 1, "low_max_age={low_max_age}");
+    }
+}
+
+#[test]
+fn low_score_detections_start_no_track_by_default_but_do_in_the_pure_form() {
+    let low = bx(100.0, 100.0);
+    for (params, expect) in [
+        (TrackerParams::default(), 0usize),
+        (TrackerParams::pure(), 1),
+    ] {
+        let mut t = Tracker::new(TrackerParams {
+            n_init: 1,
+            ..params
+        })
+        .unwrap();
+        let out = t.update(&low, &[0.1], None).unwrap();
+        assert_eq!((out.len(), t.num_tracks()), (expect, expect));
+    }
+}
+
+#[test]
+fn output_lost_reports_coasting_tracks_at_their_prediction() {
+    let mut t = Tracker::new(TrackerParams {
+        n_init: 1,
+        output_lost: 2,
+        size_smoothing: 0.0,
+        ..cv_params()
+    })
+    .unwrap();
+    run(&mut t, &[bx(100.0, 100.0)]);
+    run(&mut t, &[bx(104.0, 100.0)]);
+    for k in 1..=2 {
+        let out = run(&mut t, &[]);
+        assert_eq!(out.len(), 1);
+        assert_eq!(out[0].det_index, None);
+        // Constant velocity: 4 px/frame on from the last match.
+        let cx = 0.5 * (out[0].bbox[0] + out[0].bbox[2]);
+        assert!((cx - (104.0 + 4.0 * f64::from(k))).abs() < 1e-9, "cx {cx}");
+    }
+    assert!(run(&mut t, &[]).is_empty());
 }
 
 #[test]
