@@ -76,6 +76,7 @@ class ReID:
         kind: str = "auto",
         threads: int | None = None,
         batch_size: int = 32,
+        reuse: bool | ReusePolicy = False,
     ) -> None:
         if batch_size < 1:
             raise ParameterError(f"batch_size must be >= 1, got {batch_size}")
@@ -115,6 +116,15 @@ class ReID:
         self.dim = int(self._run(np.zeros((1, self.height, self.width, 3), np.uint8)).shape[1])
         self.threads = threads
         self._pooled: tuple[ort.InferenceSession, tuple[int, int]] | None = None
+        policy = ReusePolicy() if reuse is True else reuse or None
+        self.reuse: ReusePolicy | None = policy
+        self._previous: dict[str, _Previous] = {}  # per feature kind: the last frame's rows
+        self.embedded = 0  # crops run through the network (with reuse, fewer than detections)
+        self.reused = 0
+
+    def reset(self) -> None:
+        """Forget the previous frame (start of a new video): nothing is reused across it."""
+        self._previous.clear()
 
     def _pooled_session(self) -> tuple[ort.InferenceSession, tuple[int, int]]:
         """The model with mask-weighted final pooling, built on first use."""
@@ -184,10 +194,45 @@ class ReID:
     def embed(
         self, frame: npt.NDArray[np.uint8], dets: Detections, features: str = "segmented"
     ) -> npt.NDArray[np.float32]:
-        """Embeddings of each detection's crop; ``features`` as in densepeds.segment.FEATURES."""
+        """Embeddings of each detection's crop; ``features`` as in densepeds.segment.FEATURES.
+
+        With ``reuse``, calls are taken as consecutive frames of one video: a detection that
+        plainly continues one of the previous call's detections gets that embedding back
+        instead of a new one (see ReusePolicy); call ``reset()`` between videos.
+        """
         check_frame(frame)
         if len(dets) == 0:
+            if self.reuse is not None:
+                self._previous.pop(features, None)
             return np.zeros((0, self.dim), np.float32)
+        if self.reuse is None:
+            out = self._embed_all(frame, dets, features)
+            self.embedded += len(dets)
+            return out
+        thumbs = thumbnails(frame, dets.boxes)
+        prev = self._previous.get(features)
+        source = np.full(len(dets), -1, np.intp)
+        if prev is not None and prev.shape == frame.shape:
+            source = reuse_sources(self.reuse, dets.boxes, thumbs, prev)
+        fresh = np.flatnonzero(source < 0)
+        out = np.empty((len(dets), self.dim), np.float32)
+        ages = np.zeros(len(dets), np.int64)
+        if len(fresh):
+            out[fresh] = self._embed_all(frame, dets.subset(fresh), features)
+        if prev is not None:
+            kept = np.flatnonzero(source >= 0)
+            out[kept] = prev.embeddings[source[kept]]
+            ages[kept] = prev.ages[source[kept]] + 1
+        self.embedded += len(fresh)
+        self.reused += len(dets) - len(fresh)
+        self._previous[features] = _Previous(
+            frame.shape, dets.boxes.astype(np.float64), out.copy(), ages, thumbs
+        )
+        return out
+
+    def _embed_all(
+        self, frame: npt.NDArray[np.uint8], dets: Detections, features: str
+    ) -> npt.NDArray[np.float32]:
         if self.kind.match_aspect:
             boxes = dets.boxes.astype(np.float64)
             centre = (boxes[:, 0] + boxes[:, 2]) / 2
@@ -206,6 +251,90 @@ class ReID:
             ]
             return self.embed_crops(crops_for(frame, dets, "bbox"), person)
         return self.embed_crops(crops_for(frame, dets, features))
+
+
+@dataclass(frozen=True)
+class ReusePolicy:
+    """When a detection keeps the previous frame's embedding instead of a new one.
+
+    Only where IoU alone already decides who it is: the box overlaps exactly one previous
+    detection by at least ``min_iou`` and every other box, previous or current, by at most
+    ``max_other_iou``; its 8x4 colour thumbnail differs from that detection's by at most
+    ``max_thumb_diff`` grey levels on average (someone else stepped in front: embed again);
+    and the embedding was reused fewer than ``max_reuses`` frames in a row (appearance drifts).
+    """
+
+    min_iou: float = 0.6
+    max_other_iou: float = 0.3
+    max_thumb_diff: float = 12.0
+    max_reuses: int = 4
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.min_iou <= 1.0 or not 0.0 <= self.max_other_iou < self.min_iou:
+            raise ParameterError(
+                f"need 0 <= max_other_iou < min_iou <= 1, got {self.max_other_iou}, {self.min_iou}"
+            )
+        if self.max_thumb_diff < 0 or self.max_reuses < 0:
+            raise ParameterError("max_thumb_diff and max_reuses must be >= 0")
+
+
+THUMB_SIZE = (4, 8)  # (width, height): coarse colour layout of a person, cheap to compare
+
+
+@dataclass(frozen=True)
+class _Previous:
+    shape: tuple[int, ...]
+    boxes: npt.NDArray[np.float64]
+    embeddings: npt.NDArray[np.float32]
+    ages: npt.NDArray[np.int64]  # frames each embedding has been reused in a row
+    thumbs: npt.NDArray[np.float32]
+
+
+def thumbnails(frame: npt.NDArray[np.uint8], boxes: npt.ArrayLike) -> npt.NDArray[np.float32]:
+    """[N, 8, 4, 3] area-averaged colour thumbnails of the boxes' plain crops."""
+    b = np.asarray(boxes, np.float64).reshape(-1, 4)
+    out = np.empty((len(b), THUMB_SIZE[1], THUMB_SIZE[0], 3), np.float32)
+    for i, box in enumerate(b):
+        x0, y0, x1, y1 = box_region(box, frame.shape[1], frame.shape[0])
+        out[i] = cv2.resize(frame[y0:y1, x0:x1], THUMB_SIZE, interpolation=cv2.INTER_AREA)
+    return out
+
+
+def reuse_sources(
+    policy: ReusePolicy,
+    boxes: npt.ArrayLike,
+    thumbs: npt.NDArray[np.float32],
+    prev: _Previous,
+) -> npt.NDArray[np.intp]:
+    """For each current box, the previous detection whose embedding it keeps, or -1."""
+    from densepeds.detect.tiling import iou_matrix
+
+    cur = np.asarray(boxes, np.float64).reshape(-1, 4)
+    source = np.full(len(cur), -1, np.intp)
+    if len(cur) == 0 or len(prev.boxes) == 0:
+        return source
+    cross = iou_matrix(cur, prev.boxes)  # [current, previous]
+    within = iou_matrix(cur, cur)
+    np.fill_diagonal(within, 0.0)
+    best = cross.argmax(axis=1)
+    rows = np.arange(len(cur))
+    best_iou = cross[rows, best]
+    others = cross.copy()
+    others[rows, best] = 0.0
+    # Other current boxes on the chosen previous one: zero out this row's own share first.
+    column = cross[:, best].copy()  # [current k, candidate i]: IoU of current k with best[i]
+    column[rows, rows] = 0.0
+    diff = np.abs(thumbs - prev.thumbs[best]).mean(axis=(1, 2, 3))
+    ok = (
+        (best_iou >= policy.min_iou)
+        & (others.max(axis=1) <= policy.max_other_iou)
+        & (column.max(axis=0) <= policy.max_other_iou)
+        & (within.max(axis=1) <= policy.max_other_iou)
+        & (diff <= policy.max_thumb_diff)
+        & (prev.ages[best] < policy.max_reuses)
+    )
+    source[ok] = best[ok]
+    return source
 
 
 @dataclass(frozen=True)

@@ -8,6 +8,7 @@ through onnxruntime in one batched call; masks are rendered only inside each kep
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,6 +27,25 @@ EXPECTED = (
     "outputs [1,4+classes+masks,anchors] and prototypes [1,masks,h,w] or [1,h,w,masks] "
     "(models/README.md says how to get one)"
 )
+
+
+@dataclass(frozen=True)
+class Candidates:
+    """Detections kept after merging views: frame boxes, scores, mask coefficients, view."""
+
+    boxes: npt.NDArray[np.float64]
+    scores: npt.NDArray[np.float32]
+    coefs: npt.NDArray[np.float32]
+    view_idx: npt.NDArray[np.intp]
+
+    @classmethod
+    def empty(cls, num_masks: int) -> Candidates:
+        return cls(
+            np.zeros((0, 4)),
+            np.zeros(0, np.float32),
+            np.zeros((0, num_masks), np.float32),
+            np.zeros(0, np.intp),
+        )
 
 
 @dataclass(frozen=True)
@@ -79,6 +99,8 @@ class YoloSegDetector:
             model, threads, dequantize=dequantize
         )
         self.batch_views = batch_views
+        # Seconds spent per stage (preprocess, inference, boxes, masks), for benchmarks.
+        self.stage_seconds: dict[str, float] = {}
         self._read_contract()
 
     # --- model contract -------------------------------------------------------------------
@@ -161,10 +183,8 @@ class YoloSegDetector:
             for t, is_tile in regions
         ]
 
-    def __call__(self, frame: npt.NDArray[np.uint8]) -> Detections:
-        check_frame(frame)
-        height, width = frame.shape[:2]
-        views = self.views(width, height)
+    def letterbox(self, frame: npt.NDArray[np.uint8], views: list[_View]) -> np.ndarray:
+        """The views of ``frame`` resized into one uint8 batch [V, H, W, 3], grey padded."""
         batch = np.full((len(views), self.input_h, self.input_w, 3), LETTERBOX_GREY, np.uint8)
         for k, v in enumerate(views):
             t = v.tile
@@ -173,13 +193,42 @@ class YoloSegDetector:
             batch[k, :h, :w] = cv2.resize(
                 frame[t.y0 : t.y1, t.x0 : t.x1], (w, h), interpolation=cv2.INTER_LINEAR
             )
+        return batch
+
+    def __call__(self, frame: npt.NDArray[np.uint8]) -> Detections:
+        check_frame(frame)
+        height, width = frame.shape[:2]
+        clock = time.perf_counter()
+        views = self.views(width, height)
+        batch = self.letterbox(frame, views)
+        clock = self._tick("preprocess", clock)
         preds, protos = self._infer(batch)
+        clock = self._tick("inference", clock)
+        found = self.candidates(preds, views, width, height)
+        dets = Detections(found.boxes.astype(np.float32), found.scores)
+        clock = self._tick("boxes", clock)
+        if self.with_masks and len(found.boxes):
+            dets.masks, dets.mask_boxes = self._masks(
+                found.boxes, found.coefs, found.view_idx, views, protos, width, height
+            )
+            self._tick("masks", clock)
+        return dets
+
+    def _tick(self, stage: str, since: float) -> float:
+        now = time.perf_counter()
+        self.stage_seconds[stage] = self.stage_seconds.get(stage, 0.0) + now - since
+        return now
+
+    def candidates(
+        self, preds: np.ndarray, views: list[_View], width: int, height: int
+    ) -> Candidates:
+        """The detections kept from the views' raw predictions, in frame coordinates."""
         if self.pred_transposed:
             preds = preds.transpose(0, 2, 1)
         scores_all = preds[:, 4 + self.person_class, :]
         view_idx, anchor_idx = np.nonzero(scores_all > self.score_threshold)
         if len(view_idx) == 0:
-            return Detections.empty()
+            return Candidates.empty(self.num_masks)
         cand = preds[view_idx, :, anchor_idx]  # [K, C]
         scores = cand[:, 4 + self.person_class]
         cxcy = cand[:, 0:2] * self.box_scale
@@ -198,13 +247,20 @@ class YoloSegDetector:
         idx = np.flatnonzero(valid)
         merged = merge_views(boxes[idx], scores[idx], view_idx[idx], cut[idx], self.iou_threshold)
         keep = idx[merged]
-        dets = Detections(boxes[keep], scores[keep])
-        if self.with_masks:
-            coefs = cand[keep, 4 + self.num_classes :]
-            dets.masks, dets.mask_boxes = self._masks(
-                boxes[keep], coefs, view_idx[keep], views, protos, width, height
-            )
-        return dets
+        return Candidates(
+            boxes[keep], scores[keep], cand[keep, 4 + self.num_classes :], view_idx[keep]
+        )
+
+    def masks(
+        self,
+        found: Candidates,
+        views: list[_View],
+        protos: np.ndarray,
+        width: int,
+        height: int,
+    ) -> tuple[list[npt.NDArray[np.bool_]], npt.NDArray[np.int32]]:
+        """Box-local masks of ``found`` (see ``_masks``)."""
+        return self._masks(found.boxes, found.coefs, found.view_idx, views, protos, width, height)
 
     def _masks(
         self,

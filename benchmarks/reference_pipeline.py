@@ -1,0 +1,147 @@
+"""The straightforward pipeline that issue 7's speed target is measured against.
+
+    OPENBLAS_NUM_THREADS=1 python benchmarks/reference_pipeline.py SEQ_OR_VIDEO --frames 1:60 \
+        --out tracks.txt [--features segmented] [--threads 2]
+
+Same models and settings as ``densepeds run``, done the plain way: the shipped int8 segmenter on
+the 3x2 tiles, each tile its own batch-1 onnxruntime call on the model file as shipped (no
+rewrite, no float copy, no whole-frame view); a mask for every detection; every detection
+cropped and embedded by OSNet every frame (one batched call per frame); the tracker; the tracks
+file. onnxruntime ``intra_op_num_threads`` = ``--threads`` (2).
+
+Every setting is pinned here, so that a later change of the package's defaults does not move the
+reference. The box and mask decoding, merging of tiles, crops, tracker and output writer are the
+package's own (they are the same work in both pipelines); the loop and its timing are this
+script's. Prints one line: frames, wall time and the per-stage breakdown in ms per frame.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # numpy's BLAS threads fight onnxruntime's
+
+import numpy as np
+import onnxruntime as ort
+from densepeds.detect import onnxutil
+from densepeds.detect.yoloseg import YoloSegDetector
+from densepeds.modelfiles import find_model
+from densepeds.motio import write_tracks
+from densepeds.pipeline import track_rows
+from densepeds.reid import ReID
+from densepeds.segment import crops_for
+from densepeds.tracking import Tracker
+from densepeds.types import Detections
+from densepeds.video import open_source, parse_frame_range
+
+STAGES = ("load", "decode", "detection", "masks", "reid", "tracking", "output")
+DETECTOR_MODEL = "yolov8n-seg-320-int8.onnx"
+REID_MODEL = "osnet_x0_25_msmt17.onnx"
+
+
+class Timer:
+    def __init__(self) -> None:
+        self.seconds = dict.fromkeys(STAGES, 0.0)
+
+    @contextmanager
+    def stage(self, name: str) -> Iterator[None]:
+        start = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.seconds[name] += time.perf_counter() - start
+
+
+class ReferenceDetector:
+    """3x2 tiles, a batch-1 call per tile on the shipped model, masks for every detection."""
+
+    def __init__(self, threads: int) -> None:
+        path = find_model(DETECTOR_MODEL)
+        # The package's decoder, used for letterboxing and decoding only; inference runs on a
+        # session of the file as shipped (fixed batch 1), once per tile.
+        self.decoder = YoloSegDetector(path, tiles=(3, 2), full_frame=False, threads=1)
+        self.session = onnxutil.make_session(path, threads)
+        self.input_name = self.session.get_inputs()[0].name
+
+    def __call__(self, frame: np.ndarray, timer: Timer) -> Detections:
+        d = self.decoder
+        height, width = frame.shape[:2]
+        with timer.stage("detection"):
+            views = d.views(width, height)
+            preds, protos = [], []
+            for view in views:
+                image = d.letterbox(frame, [view])[..., ::-1].astype(np.float32) / 255
+                if not d.nhwc:
+                    image = image.transpose(0, 3, 1, 2)
+                out = self.session.run(None, {self.input_name: np.ascontiguousarray(image)})
+                preds.append(out[d.pred_index])
+                protos.append(out[d.proto_index])
+            found = d.candidates(np.concatenate(preds), views, width, height)
+            dets = Detections(found.boxes, found.scores)
+        with timer.stage("masks"):
+            if len(dets):
+                dets.masks, dets.mask_boxes = d.masks(
+                    found, views, np.concatenate(protos), width, height
+                )
+        return dets
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("input", help="video, image folder or MOTChallenge sequence folder")
+    ap.add_argument("--frames", default=None, metavar="A:B")
+    ap.add_argument("--out", type=Path, required=True)
+    ap.add_argument("--features", default="segmented", help="crops for re-ID (segment.FEATURES)")
+    ap.add_argument("--motion", default="frvo")
+    ap.add_argument("--threads", type=int, default=2, help="onnxruntime intra-op threads")
+    args = ap.parse_args(argv)
+    start = time.perf_counter()
+    timer = Timer()
+    with timer.stage("load"):
+        ort.set_default_logger_severity(3)
+        detector = ReferenceDetector(args.threads)
+        reid = ReID(find_model(REID_MODEL), threads=args.threads, batch_size=64)
+        tracker = Tracker(motion=args.motion)
+        src = open_source(args.input)
+    rows: list[tuple[float, ...]] = []
+    frames = 0
+    it = src.frames(parse_frame_range(args.frames))
+    while True:
+        with timer.stage("decode"):
+            item = next(it, None)
+        if item is None:
+            break
+        frame_no, image = item
+        if image is None:
+            raise SystemExit(f"{args.input}: the reference needs frames")
+        dets = detector(image, timer)
+        with timer.stage("reid"):
+            emb = None
+            if len(dets):
+                crops = crops_for(image, dets, args.features)
+                emb = reid.embed_crops(crops)
+        with timer.stage("tracking"):
+            tracks = tracker.update(dets.boxes.astype(np.float64), dets.scores, emb)
+        with timer.stage("output"):
+            rows.extend(track_rows(frame_no, tracks))
+        frames += 1
+    with timer.stage("output"):
+        write_tracks(args.out, rows)
+    wall = time.perf_counter() - start
+    per = {k: 1000 * v / max(frames, 1) for k, v in timer.seconds.items() if k != "load"}
+    parts = ", ".join(f"{k} {v:.1f}" for k, v in per.items())
+    print(
+        f"reference: {frames} frames in {wall:.2f} s (load {timer.seconds['load']:.2f} s); "
+        f"{parts} ms/frame"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
