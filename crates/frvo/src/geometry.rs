@@ -69,6 +69,12 @@ impl Polygon {
         }
     }
 
+    /// Empties the polygon (the storage is reused, not cleared).
+    #[inline]
+    pub fn clear(&mut self) {
+        self.len = 0;
+    }
+
     #[inline]
     pub fn points(&self) -> &[V2] {
         &self.pts[..self.len]
@@ -95,14 +101,7 @@ impl Polygon {
 
     /// Index of the lowest vertex (smallest y, then smallest x): where edge angles start at 0.
     pub fn lowest_vertex(&self) -> usize {
-        let mut best = 0;
-        for (i, q) in self.points().iter().enumerate() {
-            let b = self.pts[best];
-            if q.y < b.y || (q.y == b.y && q.x < b.x) {
-                best = i;
-            }
-        }
-        best
+        lowest_vertex(self.points())
     }
 
     /// Whether `p` lies inside or on the polygon, with tolerance `eps` (distance units).
@@ -115,6 +114,18 @@ impl Polygon {
             len == 0.0 || cross(e, p - a) >= -eps * len
         })
     }
+}
+
+/// Index of the lowest point (smallest y, then smallest x; 0 when empty).
+pub fn lowest_vertex(pts: &[V2]) -> usize {
+    let mut best = 0;
+    for (i, q) in pts.iter().enumerate() {
+        let b = pts[best];
+        if q.y < b.y || (q.y == b.y && q.x < b.x) {
+            best = i;
+        }
+    }
+    best
 }
 
 /// An ellipse with full extent `l` along its heading and `w` across it.
@@ -165,18 +176,60 @@ impl Ellipse {
     /// flat side, points along the heading: flat fronts make head-on pairs stall (their
     /// avoidance has no sideways component).
     pub fn polygon(&self, sides: usize) -> Polygon {
+        let unit = UnitPolygon::new(sides);
+        let mut p = Polygon::default();
+        self.for_each_vertex(&unit, |q| p.push(q));
+        p
+    }
+
+    /// The vertices of [`Ellipse::polygon`] (same arithmetic, so the same bits) from a
+    /// precomputed [`UnitPolygon`]: no trigonometry per ellipse.
+    #[inline]
+    pub fn for_each_vertex(&self, unit: &UnitPolygon, mut emit: impl FnMut(V2)) {
+        let (c, s) = (self.heading.x, self.heading.y);
+        let (ar, br) = (self.a * unit.r, self.b * unit.r);
+        for &(cos, sin) in unit.angles() {
+            let x = ar * cos;
+            let y = br * sin;
+            emit(V2::new(c * x - s * y, s * x + c * y));
+        }
+    }
+}
+
+/// The regular `sides`-gon circumscribing the unit circle, vertex 0 on the x axis: the circumradius
+/// `r` and each vertex angle's (cos, sin), computed once and reused for every ellipse.
+#[derive(Clone, Copy, Debug)]
+pub struct UnitPolygon {
+    r: f64,
+    angles: [(f64, f64); MAX_SIDES],
+    len: usize,
+}
+
+impl UnitPolygon {
+    /// `sides` is clamped to 3..=[`MAX_SIDES`].
+    pub fn new(sides: usize) -> Self {
         let n = sides.clamp(3, MAX_SIDES);
         let step = std::f64::consts::TAU / n as f64;
-        let r = 1.0 / (0.5 * step).cos();
-        let (c, s) = (self.heading.x, self.heading.y);
-        let mut p = Polygon::default();
-        for k in 0..n {
+        let mut angles = [(0.0, 0.0); MAX_SIDES];
+        for (k, cs) in angles.iter_mut().take(n).enumerate() {
             let t = k as f64 * step;
-            let x = self.a * r * t.cos();
-            let y = self.b * r * t.sin();
-            p.push(V2::new(c * x - s * y, s * x + c * y));
+            *cs = (t.cos(), t.sin());
         }
-        p
+        Self {
+            r: 1.0 / (0.5 * step).cos(),
+            angles,
+            len: n,
+        }
+    }
+
+    #[inline]
+    pub fn sides(&self) -> usize {
+        self.len
+    }
+
+    #[inline]
+    fn angles(&self) -> &[(f64, f64)] {
+        &self.angles[..self.len]
     }
 }
 

@@ -1,40 +1,70 @@
 //! Minkowski sum of two convex polygons in O(n + m) by merging their edges in angle order.
+//!
+//! The hot path sums the same polygons against many partners, so each polygon is prepared once
+//! ([`prepare`]: vertices from the lowest one, closed, with edge vectors) and [`merge_prepared`]
+//! only merges; [`minkowski_sum`] is the one-off form on [`Polygon`]s.
 
-use crate::geometry::{cross, Polygon};
+use crate::geometry::{cross, lowest_vertex, Polygon, V2};
 
-/// `a ⊕ b` for counter-clockwise convex polygons. Both walks start at the lowest vertex, where
-/// edge angles begin at 0, and at each step the edge that turns least is taken (both when
-/// parallel or undefined), so the result is counter-clockwise and has at most `n + m` vertices.
-#[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN must advance, see below
-pub fn minkowski_sum(a: &Polygon, b: &Polygon) -> Polygon {
-    let (pa, pb) = (a.points(), b.points());
-    let (n, m) = (pa.len(), pb.len());
-    let mut out = Polygon::default();
-    if n == 0 || m == 0 {
-        return out;
+/// Appends a counter-clockwise polygon prepared for [`merge_prepared`]: its `n` vertices
+/// starting at the lowest one (where edge angles begin at 0) followed by that vertex again
+/// (`n + 1` points), and its `n` edge vectors.
+pub fn prepare(poly: &[V2], pts: &mut Vec<V2>, edges: &mut Vec<V2>) {
+    let n = poly.len();
+    if n == 0 {
+        return;
     }
-    let (sa, sb) = (a.lowest_vertex(), b.lowest_vertex());
-    let va = |i: usize| pa[(sa + i) % n];
-    let vb = |j: usize| pb[(sb + j) % m];
+    let start = lowest_vertex(poly);
+    let first = pts.len();
+    pts.extend_from_slice(&poly[start..]);
+    pts.extend_from_slice(&poly[..start]);
+    pts.push(poly[start]);
+    edges.extend(pts[first..].windows(2).map(|w| w[1] - w[0]));
+}
+
+/// `a ⊕ b` for polygons prepared by [`prepare`] (`a`: `n + 1` points and `n` edges, likewise
+/// `b`), written to `out` (cleared first). At each step the edge that turns least is taken
+/// (both when parallel or undefined), so the result is counter-clockwise, starts at the lowest
+/// vertex and has at most `n + m` vertices.
+#[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN must advance, see below
+#[inline]
+pub fn merge_prepared(a: &[V2], ea: &[V2], b: &[V2], eb: &[V2], out: &mut Polygon) {
+    out.clear();
+    let (n, m) = (
+        ea.len().min(a.len().saturating_sub(1)),
+        eb.len().min(b.len().saturating_sub(1)),
+    );
     let (mut i, mut j) = (0, 0);
-    while i < n || j < m {
-        out.push(va(i) + vb(j));
-        if i == n {
-            j += 1;
-            continue;
-        }
-        if j == m {
-            i += 1;
-            continue;
-        }
-        let turn = cross(va(i + 1) - va(i), vb(j + 1) - vb(j));
+    // Branch-free advance: which edge comes next is data-dependent, so a branch would
+    // mispredict about every other vertex.
+    while i < n && j < m {
+        out.push(a[i] + b[j]);
+        let turn = cross(ea[i], eb[j]);
         // Written with negations so that a NaN advances both walks (no endless loop).
-        if !(turn < 0.0) {
-            i += 1;
+        i += usize::from(!(turn < 0.0));
+        j += usize::from(!(turn > 0.0));
+    }
+    // One walk is done (back at its first vertex); finish the other.
+    if n > 0 && m > 0 {
+        for &q in &a[i..n] {
+            out.push(q + b[j]);
         }
-        if !(turn > 0.0) {
-            j += 1;
+        for &q in &b[j..m] {
+            out.push(a[n] + q);
         }
+    }
+}
+
+/// `a ⊕ b` for counter-clockwise convex polygons (see [`merge_prepared`]).
+pub fn minkowski_sum(a: &Polygon, b: &Polygon) -> Polygon {
+    let mut prepared = [(Vec::new(), Vec::new()), (Vec::new(), Vec::new())];
+    for (poly, (pts, edges)) in [a, b].into_iter().zip(&mut prepared) {
+        prepare(poly.points(), pts, edges);
+    }
+    let [(pa, ea), (pb, eb)] = &prepared;
+    let mut out = Polygon::default();
+    if !pa.is_empty() && !pb.is_empty() {
+        merge_prepared(pa, ea, pb, eb, &mut out);
     }
     out
 }

@@ -27,68 +27,110 @@ pub struct Avoidance {
     pub normal: V2,
 }
 
+// The facing-edge bit mask holds one bit per vertex.
+const _: () = assert!(MAX_VERTICES <= 64);
+
+/// Reusable buffer for [`avoidance_with`], so that the hot path does not allocate or zero-fill.
+#[derive(Clone, Debug, Default)]
+pub struct AvoidanceScratch {
+    feats: Vec<Feature>,
+}
+
 /// Avoidance for relative velocity `w`, relative position `p`, Minkowski sum `sum = B ⊕ (-A)`.
 /// Apart (origin outside `P`): the truncated cone for horizon `tau`. Overlapping: as RVO2 does,
 /// the obstacle is `P / dt`, so that the overlap is resolved within one step.
 pub fn avoidance(p: V2, sum: &Polygon, w: V2, tau: f64, dt: f64) -> Avoidance {
-    let pts = sum.points();
-    let n = pts.len();
-    let mut feats = [Feature::default(); MAX_VERTICES + 2];
-    let mut count = 0;
-    // Edge i (from vertex i to i+1) faces the origin when the origin is on its outer side.
-    let faces = |i: usize| cross(pts[(i + 1) % n] - pts[i], -(p + pts[i])) < 0.0;
-    let first = (0..n).find(|&i| faces(i) && !faces((i + n - 1) % n));
+    avoidance_with(
+        p,
+        sum.points(),
+        w,
+        tau,
+        dt,
+        &mut AvoidanceScratch::default(),
+    )
+}
+
+/// [`avoidance`] for the counter-clockwise vertices `sum` (at most [`MAX_VERTICES`] are used),
+/// with a reused buffer.
+pub fn avoidance_with(
+    p: V2,
+    sum: &[V2],
+    w: V2,
+    tau: f64,
+    dt: f64,
+    scratch: &mut AvoidanceScratch,
+) -> Avoidance {
+    let pts = sum;
+    let n = pts.len().min(MAX_VERTICES);
+    let feats = &mut scratch.feats;
+    feats.clear();
+    let next = |i: usize| if i + 1 == n { 0 } else { i + 1 };
+    // Edge i (from vertex i to i+1) faces the origin when the origin is on its outer side;
+    // bit i of `facing`. The facing edges of a convex polygon are one contiguous run (none
+    // when the origin is inside); `first` is where it starts.
+    let faces = |i: usize| cross(pts[next(i)] - pts[i], -(p + pts[i])) < 0.0;
+    let mut facing = 0u64;
+    for i in 0..n {
+        facing |= u64::from(faces(i)) << i;
+    }
+    let is_facing = |i: usize| facing >> i & 1 == 1;
+    let mut first = None;
+    if n >= 3 {
+        // Facing edges whose predecessor (cyclically) does not face.
+        let prev = facing << 1 | facing >> (n - 1);
+        let starts = facing & !prev & (u64::MAX >> (64 - n));
+        if starts != 0 {
+            first = Some(starts.trailing_zeros() as usize);
+        }
+    }
     match first {
-        Some(first) if n >= 3 => {
+        Some(first) => {
             let inv_tau = 1.0 / tau;
             let start = p + pts[first];
             let mut k = first;
             let mut steps = 0;
-            while faces(k) && steps < n {
+            while is_facing(k) && steps < n {
                 let a = p + pts[k];
-                let b = p + pts[(k + 1) % n];
+                let b = p + pts[next(k)];
                 let edge = b - a;
-                feats[count] = Feature {
+                feats.push(Feature {
                     start: a * inv_tau,
                     edge: edge * inv_tau,
                     ray: false,
                     normal: unit(right_normal(edge)),
-                };
-                count += 1;
-                k = (k + 1) % n;
+                });
+                k = next(k);
                 steps += 1;
             }
             let end = p + pts[k];
-            feats[count] = Feature {
+            feats.push(Feature {
                 start: start * inv_tau,
                 edge: start,
                 ray: true,
                 normal: unit(left_normal(start)),
-            };
-            feats[count + 1] = Feature {
+            });
+            feats.push(Feature {
                 start: end * inv_tau,
                 edge: end,
                 ray: true,
                 normal: unit(right_normal(end)),
-            };
-            count += 2;
+            });
         }
-        _ => {
+        None => {
             let inv_dt = 1.0 / dt;
             for i in 0..n {
                 let a = p + pts[i];
-                let edge = pts[(i + 1) % n] - pts[i];
-                feats[count] = Feature {
+                let edge = pts[next(i)] - pts[i];
+                feats.push(Feature {
                     start: a * inv_dt,
                     edge: edge * inv_dt,
                     ray: false,
                     normal: unit(right_normal(edge)),
-                };
-                count += 1;
+                });
             }
         }
     }
-    nearest_boundary(&feats[..count], w)
+    nearest_boundary(feats, w)
 }
 
 fn unit(v: V2) -> V2 {

@@ -2,12 +2,14 @@
 //! classic RVO/ORCA baseline. Both share the polygon velocity obstacles, the grid and the LP.
 
 use crate::agent::Agent;
-use crate::geometry::{heading, is_finite, Ellipse, Polygon, MIN_SIZE, V2};
+use crate::geometry::{heading, is_finite, Ellipse, Polygon, UnitPolygon, MIN_SIZE, V2};
 use crate::lp::{self, Line};
-use crate::minkowski::minkowski_sum;
+use crate::minkowski;
 use crate::model::{MotionKind, MotionModel, MotionParams};
 use crate::neighbors::NeighborGrid;
-use crate::velocity_obstacle::{avoidance, avoidance_circle, reciprocal_line};
+use crate::velocity_obstacle::{
+    avoidance_circle, avoidance_with, reciprocal_line, AvoidanceScratch,
+};
 
 /// How a pedestrian's footprint is built from its axes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -24,11 +26,23 @@ pub enum Footprint {
 pub struct Orca {
     params: MotionParams,
     footprint: Footprint,
+    unit: UnitPolygon,
     grid: NeighborGrid,
     positions: Vec<V2>,
     valid: Vec<bool>,
-    shapes: Vec<Polygon>,
+    /// Each agent's polygon and its negation, prepared for Minkowski sums (see
+    /// [`minkowski::prepare`]): `sides + 1` points and `sides` edges per agent.
+    shape_pts: Vec<V2>,
+    shape_edges: Vec<V2>,
+    neg_pts: Vec<V2>,
+    neg_edges: Vec<V2>,
     radii: Vec<f64>,
+    feasible: Vec<bool>,
+    // Per-agent scratch, reused across agents and steps.
+    polygon: Vec<V2>,
+    negated: Vec<V2>,
+    sum: Polygon,
+    vo_scratch: AvoidanceScratch,
     neighbors: Vec<(f64, usize)>,
     lines: Vec<Line>,
     scratch: Vec<Line>,
@@ -36,14 +50,24 @@ pub struct Orca {
 
 impl Orca {
     pub fn new(params: MotionParams, footprint: Footprint) -> Self {
+        let params = params.sanitized();
         Self {
-            params: params.sanitized(),
+            params,
             footprint,
+            unit: UnitPolygon::new(params.polygon_sides),
             grid: NeighborGrid::default(),
             positions: Vec::new(),
             valid: Vec::new(),
-            shapes: Vec::new(),
+            shape_pts: Vec::new(),
+            shape_edges: Vec::new(),
+            neg_pts: Vec::new(),
+            neg_edges: Vec::new(),
             radii: Vec::new(),
+            feasible: Vec::new(),
+            polygon: Vec::new(),
+            negated: Vec::new(),
+            sum: Polygon::default(),
+            vo_scratch: AvoidanceScratch::default(),
             neighbors: Vec::new(),
             lines: Vec::new(),
             scratch: Vec::new(),
@@ -54,9 +78,40 @@ impl Orca {
         &self.params
     }
 
-    fn polygon_of(&self, a: &Agent) -> Polygon {
-        Ellipse::new(a.l, a.w, heading(a.vel, a.pref_vel)).polygon(self.params.polygon_sides)
+    /// Per agent of the last [`MotionModel::step`]: whether its half-planes and the speed disc
+    /// had a common point (its velocity then satisfies every neighbour's constraint). False
+    /// when the LP fell back to the least-violation velocity, or the agent was skipped
+    /// (non-finite position or velocity).
+    pub fn last_feasible(&self) -> &[bool] {
+        &self.feasible
     }
+
+    /// Builds every agent's polygon once per step (no trigonometry: the unit polygon is cached)
+    /// and prepares it and its negation for the Minkowski sums.
+    fn prepare_shapes(&mut self, agents: &[Agent]) {
+        self.shape_pts.clear();
+        self.shape_edges.clear();
+        self.neg_pts.clear();
+        self.neg_edges.clear();
+        for a in agents {
+            let e = Ellipse::new(a.l, a.w, heading(a.vel, a.pref_vel));
+            self.polygon.clear();
+            e.for_each_vertex(&self.unit, |q| self.polygon.push(q));
+            self.negated.clear();
+            self.negated.extend(self.polygon.iter().map(|q| -q));
+            minkowski::prepare(&self.polygon, &mut self.shape_pts, &mut self.shape_edges);
+            minkowski::prepare(&self.negated, &mut self.neg_pts, &mut self.neg_edges);
+        }
+    }
+}
+
+/// Agent `k`'s prepared polygon: `sides + 1` points and `sides` edges.
+#[inline]
+fn prepared<'a>(pts: &'a [V2], edges: &'a [V2], sides: usize, k: usize) -> (&'a [V2], &'a [V2]) {
+    (
+        &pts[k * (sides + 1)..(k + 1) * (sides + 1)],
+        &edges[k * sides..(k + 1) * sides],
+    )
 }
 
 /// Larger of two sizes, ignoring a non-finite one.
@@ -107,15 +162,9 @@ impl MotionModel for Orca {
         self.positions.extend(agents.iter().map(|a| a.pos));
         self.valid.clear();
         self.valid.extend(agents.iter().map(is_valid));
-        self.shapes.clear();
         self.radii.clear();
         match self.footprint {
-            Footprint::Ellipse => {
-                for a in agents {
-                    let s = self.polygon_of(a);
-                    self.shapes.push(s);
-                }
-            }
+            Footprint::Ellipse => self.prepare_shapes(agents),
             Footprint::Circle => self.radii.extend(
                 agents
                     .iter()
@@ -124,20 +173,19 @@ impl MotionModel for Orca {
         }
         self.grid
             .build(&self.positions, &self.valid, p.neighbor_radius);
+        self.feasible.clear();
 
+        let sides = self.unit.sides();
         let mut out = Vec::with_capacity(agents.len());
         for (i, a) in agents.iter().enumerate() {
             let pref = finite_pref(a);
             if !self.valid[i] {
                 out.push(pref);
+                self.feasible.push(false);
                 continue;
             }
             self.grid
                 .query(&self.positions, i, p.max_neighbors, &mut self.neighbors);
-            let minus_me = match self.footprint {
-                Footprint::Ellipse => self.shapes[i].negated(),
-                Footprint::Circle => Polygon::default(),
-            };
             self.lines.clear();
             for &(_, j) in &self.neighbors {
                 let b = &agents[j];
@@ -149,8 +197,18 @@ impl MotionModel for Orca {
                 }
                 let avoid = match self.footprint {
                     Footprint::Ellipse => {
-                        let sum = minkowski_sum(&self.shapes[j], &minus_me);
-                        avoidance(rel_pos, &sum, rel_vel, p.time_horizon, dt)
+                        // B ⊕ (-A), from the prepared polygons.
+                        let (pb, eb) = prepared(&self.shape_pts, &self.shape_edges, sides, j);
+                        let (pa, ea) = prepared(&self.neg_pts, &self.neg_edges, sides, i);
+                        minkowski::merge_prepared(pb, eb, pa, ea, &mut self.sum);
+                        avoidance_with(
+                            rel_pos,
+                            self.sum.points(),
+                            rel_vel,
+                            p.time_horizon,
+                            dt,
+                            &mut self.vo_scratch,
+                        )
                     }
                     Footprint::Circle => {
                         let r = self.radii[i] + self.radii[j];
@@ -163,11 +221,9 @@ impl MotionModel for Orca {
                 }
             }
             let sol = lp::solve(&self.lines, p.max_speed, pref, &mut self.scratch);
-            out.push(if is_finite(sol.velocity) {
-                sol.velocity
-            } else {
-                pref
-            });
+            let ok = is_finite(sol.velocity);
+            out.push(if ok { sol.velocity } else { pref });
+            self.feasible.push(ok && sol.feasible);
         }
         out
     }
