@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import threading
+from collections.abc import Iterator
 from pathlib import Path
 
 import cv2
@@ -18,6 +20,7 @@ from densepeds.video import (
     id_colour,
     open_source,
     parse_frame_range,
+    prefetched,
 )
 
 
@@ -136,3 +139,48 @@ def test_annotated_writer_draws_boxes_and_is_atomic(tmp_path: Path) -> None:
     assert not partial.exists() and not list(tmp_path.glob(".partial*"))
     with pytest.raises(ParameterError):
         AnnotatedVideoWriter(tmp_path / "out.txt")
+
+
+def test_prefetched_video_matches_direct_decoding(tmp_path: Path) -> None:
+    path = tmp_path / "v.avi"
+    _write_video(path, [10, 60, 110, 160, 210])
+    direct = list(VideoSource(path, prefetch=0).frames(FrameRange(2, 4)))
+    ahead = list(VideoSource(path, prefetch=2).frames(FrameRange(2, 4)))
+    assert [n for n, _ in ahead] == [n for n, _ in direct] == [2, 3, 4]
+    for (_, a), (_, b) in zip(ahead, direct, strict=True):
+        assert a is not None and b is not None
+        np.testing.assert_array_equal(a, b)
+    with pytest.raises(ParameterError):
+        VideoSource(path, prefetch=-1)
+
+
+def test_prefetched_keeps_order_and_reraises_in_the_consumer() -> None:
+    def items() -> Iterator[int]:
+        yield from range(5)
+        raise ValueError("decoder broke")
+
+    got: list[int] = []
+    with pytest.raises(ValueError, match="decoder broke"):
+        for item in prefetched(items(), depth=2):
+            got.append(item)
+    assert got == [0, 1, 2, 3, 4]
+
+
+def test_prefetched_closing_early_stops_the_producer() -> None:
+    produced: list[int] = []
+    closed = threading.Event()
+
+    def items() -> Iterator[int]:
+        try:
+            for k in range(1000):
+                produced.append(k)
+                yield k
+        finally:
+            closed.set()
+
+    gen = prefetched(items(), depth=2)
+    assert [next(gen) for _ in range(3)] == [0, 1, 2]
+    gen.close()
+    assert closed.is_set()  # the producer closed its source before close() returned
+    assert len(produced) <= 3 + 2 + 1  # taken, queued, one in hand: no run-away decoding
+    assert not any(t.name == "densepeds-decode" and t.is_alive() for t in threading.enumerate())

@@ -10,11 +10,13 @@ from __future__ import annotations
 import os
 import re
 import tempfile
+import threading
 from collections import deque
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from queue import Full, Queue
+from typing import Any, TypeVar
 
 import cv2
 import numpy as np
@@ -36,6 +38,7 @@ __all__ = [
 
 Image = npt.NDArray[np.uint8]
 VIDEO_EXTS = {".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg", ".wmv"}
+T = TypeVar("T")
 IMAGE_EXTS = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp"}
 
 
@@ -99,9 +102,16 @@ class FrameSource:
 
 
 class VideoSource(FrameSource):
-    """A video file decoded with OpenCV."""
+    """A video file decoded with OpenCV.
 
-    def __init__(self, path: str | os.PathLike[str]) -> None:
+    ``prefetch`` frames are decoded ahead on a background thread (OpenCV releases the GIL), so
+    decoding overlaps the consumer's work; 0 decodes in the caller's thread.
+    """
+
+    def __init__(self, path: str | os.PathLike[str], prefetch: int = 2) -> None:
+        if prefetch < 0:
+            raise ParameterError(f"prefetch must be >= 0, got {prefetch}")
+        self.prefetch = prefetch
         self.path = Path(path)
         if not self.path.is_file():
             raise InputError(f"{self.path}: video file not found")
@@ -120,6 +130,11 @@ class VideoSource(FrameSource):
         self.length = count if count > 0 else None
 
     def frames(self, rng: FrameRange | None = None) -> Iterator[tuple[int, Image | None]]:
+        if self.prefetch < 1:
+            return self._decode(rng)
+        return prefetched(self._decode(rng), self.prefetch)
+
+    def _decode(self, rng: FrameRange | None = None) -> Iterator[tuple[int, Image | None]]:
         rng = rng or FrameRange()
         cap = cv2.VideoCapture(str(self.path))
         if not cap.isOpened():
@@ -138,6 +153,63 @@ class VideoSource(FrameSource):
                 frame_no += 1
         finally:
             cap.release()
+
+
+_END = object()
+
+
+def prefetched(items: Iterator[T], depth: int = 2) -> Iterator[T]:
+    """``items`` produced ahead on a background thread, at most ``depth`` waiting.
+
+    The producer's exceptions are re-raised in the consumer; closing the returned generator
+    (or dropping it) stops the producer and closes ``items`` in its own thread.
+    """
+    queue: Queue[Any] = Queue(maxsize=depth)
+    stop = threading.Event()
+
+    def produce() -> None:
+        try:
+            for item in items:
+                while not stop.is_set():
+                    try:
+                        queue.put(item, timeout=0.05)
+                        break
+                    except Full:
+                        continue
+                if stop.is_set():
+                    break
+        except BaseException as exc:  # handed to the consumer, raised there
+            _put_final(queue, stop, exc)
+            return
+        finally:
+            close = getattr(items, "close", None)
+            if close is not None:
+                close()
+        _put_final(queue, stop, _END)
+
+    # Started on the first next(), so a generator never iterated leaves no thread behind.
+    worker = threading.Thread(target=produce, name="densepeds-decode", daemon=True)
+    worker.start()
+    try:
+        while True:
+            item = queue.get()
+            if item is _END:
+                return
+            if isinstance(item, BaseException):
+                raise item
+            yield item
+    finally:
+        stop.set()
+        worker.join()
+
+
+def _put_final(queue: Queue[Any], stop: threading.Event, item: object) -> None:
+    while not stop.is_set():
+        try:
+            queue.put(item, timeout=0.05)
+            return
+        except Full:
+            continue
 
 
 class ImageFolderSource(FrameSource):
