@@ -12,7 +12,7 @@ import re
 import tempfile
 import threading
 from collections import deque
-from collections.abc import Iterator
+from collections.abc import Generator, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from queue import Full, Queue
@@ -158,7 +158,7 @@ class VideoSource(FrameSource):
 _END = object()
 
 
-def prefetched(items: Iterator[T], depth: int = 2) -> Iterator[T]:
+def prefetched(items: Iterator[T], depth: int = 2) -> Generator[T, None, None]:
     """``items`` produced ahead on a background thread, at most ``depth`` waiting.
 
     The producer's exceptions are re-raised in the consumer; closing the returned generator
