@@ -1,12 +1,16 @@
-"""End-to-end speed of the full pipeline on the real videos, split by stage.
+"""Issue 7's speed target: `densepeds run` against the reference pipeline, whole processes.
 
-    python benchmarks/pipeline_speed.py [--frames 1:50] [--features segmented,bbox,none]
-                                        [--seq PETS09-S2L1-dev MOT20-01-dev] [--out FILE.md]
+    OPENBLAS_NUM_THREADS=1 python benchmarks/pipeline_speed.py [--seq MOT20-01-dev] \
+        [--frames 1:60] [--repeats 3] [--threads 2] [--profile]
 
-Runs detect (yoloseg) -> segmented boxes -> re-ID (OSNet) -> FRVO + association on each
-sequence's video in ../shared/data and prints frames per second and milliseconds per frame for
-decode, detection, re-ID, tracking and output (as `densepeds run` measures them), plus the
-machine's CPU count. Figures only: nothing is asserted.
+Each repeat runs both as separate processes, model loading included, alternating which goes
+first: ours (`python -m densepeds run SEQ --frames A:B`, the package defaults) and
+`benchmarks/reference_pipeline.py` (the straightforward pipeline). onnxruntime gets
+``--threads`` intra-op threads in both (by CPU affinity for ours: the command is started under
+``taskset`` with that many CPUs when the machine has more; else it is the machine's count).
+Prints each run's wall and CPU seconds and per-stage ms/frame, then the medians and the ratio
+reference / ours. ``--profile`` adds an in-process pass of our pipeline that splits detection
+into preprocessing, inference, box decoding and masks. Figures only: nothing is asserted.
 """
 
 from __future__ import annotations
@@ -14,69 +18,173 @@ from __future__ import annotations
 import argparse
 import os
 import platform
+import re
+import resource
+import statistics
+import subprocess
 import sys
+import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
-
-from densepeds.pipeline import STAGES, Pipeline
-from densepeds.video import SequenceSource, parse_frame_range
 
 REPO = Path(__file__).resolve().parent.parent
 SHARED = Path(os.environ.get("DENSEPEDS_SHARED", REPO.parent / "shared"))
+STAGE_RE = re.compile(r"([a-z]+) ([0-9.]+)")
 
 
-def measure(seq_dir: Path, frames: str, features: str, threads: int | None) -> dict[str, float]:
-    src = SequenceSource(seq_dir)
-    if not src.has_images:
-        raise SystemExit(f"{seq_dir}: no video or images to run the detector on")
-    opts = {"threads": threads} if threads else {}
-    pipe = Pipeline("yoloseg", features=features, motion="frvo", detector_options=opts)
-    pipe.detector()  # load models outside the timed loop
-    if features != "none":
-        pipe.reid()
-    n_tracks = 0
-    for _, tracks in pipe.run(src, frames, detections=None):
-        n_tracks += len(tracks.ids)
-    t = pipe.times
-    row = {f"{k}_ms": v for k, v in t.per_frame_ms().items()}
-    row.update(frames=t.frames, fps=t.fps, tracks_per_frame=n_tracks / max(t.frames, 1))
-    return row
+def _cpu_prefix(threads: int) -> list[str]:
+    """Pin to ``threads`` CPUs where the machine has more (quieter, and sets our default)."""
+    cpus = sorted(os.sched_getaffinity(0))
+    if len(cpus) <= threads:
+        return []
+    return ["taskset", "-c", ",".join(str(c) for c in cpus[:threads])]
+
+
+def _stages(text: str, marker: str) -> dict[str, float]:
+    """``decode 1.2, detection 60.3, ... ms/frame`` from the line holding ``marker``."""
+    for line in text.splitlines():
+        if marker in line and "ms/frame" in line:
+            body = line[line.rfind("(") + 1 :] if "(" in line else line.split(";")[-1]
+            body = body.split("ms/frame")[0]
+            return {k: float(v) for k, v in STAGE_RE.findall(body) if k != "load"}
+    raise RuntimeError(f"no per-stage line in the output:\n{text}")
+
+
+@dataclass(frozen=True)
+class Run:
+    wall: float  # seconds, the whole process
+    cpu: float  # user + system seconds of the process
+    stages: dict[str, float]  # ms per frame, as the process printed them
+
+
+def run_once(cmd: list[str], marker: str) -> Run:
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="1", PYTHONUNBUFFERED="1")
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.perf_counter()
+    proc = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=REPO)
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if proc.returncode != 0:
+        raise SystemExit(f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stderr[-3000:]}")
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return Run(wall, cpu, _stages(proc.stdout, marker))
+
+
+def _default_features() -> str:
+    """The features `densepeds run` uses on frames, so that the reference embeds the same."""
+    from densepeds import pipeline
+
+    choose = getattr(pipeline, "default_features", None)
+    return str(choose(True)) if choose else "segmented"
+
+
+def profile(seq_dir: Path, frames: str, threads: int) -> dict[str, float]:
+    """Our pipeline in-process (package defaults): ms/frame per stage, detection split up."""
+    from densepeds.pipeline import Pipeline
+    from densepeds.video import SequenceSource
+
+    cpus = sorted(os.sched_getaffinity(0))
+    if len(cpus) > threads:
+        os.sched_setaffinity(0, cpus[:threads])
+    pipe = Pipeline("yoloseg")
+    det = pipe.detector()
+    pipe.reid()
+    n = sum(1 for _ in pipe.run(SequenceSource(seq_dir), frames))
+    out = pipe.times.per_frame_ms()
+    for k, v in getattr(det, "stage_seconds", {}).items():
+        out[f"detection.{k}"] = 1000 * v / max(n, 1)
+    reid = pipe.reid()
+    embedded, reused = getattr(reid, "embedded", 0), getattr(reid, "reused", 0)
+    out["crops embedded/frame"] = embedded / max(n, 1)
+    out["crops reused/frame"] = reused / max(n, 1)
+    return out
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--seq", nargs="+", default=["PETS09-S2L1-dev", "MOT20-01-dev"])
-    ap.add_argument("--frames", default="1:50")
-    ap.add_argument("--features", default="segmented,bbox,none")
-    ap.add_argument("--threads", type=int, default=None, help="onnxruntime threads")
-    ap.add_argument("--out", type=Path, help="also write the table to this Markdown file")
+    ap.add_argument("--seq", default="MOT20-01-dev")
+    ap.add_argument("--frames", default="1:60")
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--profile", action="store_true")
     args = ap.parse_args()
-    parse_frame_range(args.frames)
-    header = ["sequence", "features", "frames", "fps", *(f"{s} ms" for s in STAGES), "tracks/frame"]
-    lines = ["| " + " | ".join(header) + " |", "|---|---|" + "---:|" * (len(header) - 2)]
-    for name in args.seq:
-        for features in args.features.split(","):
-            start = time.perf_counter()
-            r = measure(SHARED / "data" / name, args.frames, features, args.threads)
-            cells = [name, features, f"{r['frames']:.0f}", f"{r['fps']:.2f}"]
-            cells += [f"{r[f'{s}_ms']:.1f}" for s in STAGES]
-            cells.append(f"{r['tracks_per_frame']:.1f}")
-            lines.append("| " + " | ".join(cells) + " |")
-            print(lines[-1], f"  ({time.perf_counter() - start:.0f} s)", file=sys.stderr)
-    cpus = os.cpu_count()
-    note = (
-        f"Frames {args.frames}; {cpus} CPUs visible; {platform.processor() or platform.machine()};"
-        f" Python {platform.python_version()}. Stages as timed by densepeds.Pipeline.times."
+    seq_dir = SHARED / "data" / args.seq
+    if not seq_dir.is_dir():
+        raise SystemExit(f"{seq_dir}: missing (set DENSEPEDS_SHARED to the shared data folder)")
+    pin = _cpu_prefix(args.threads)
+    features = _default_features()
+    runs: dict[str, list[Run]] = {"reference": [], "ours": []}
+    with tempfile.TemporaryDirectory(prefix="densepeds-speed-") as tmp:
+        cmds = {
+            "ours": [
+                *pin,
+                sys.executable,
+                "-m",
+                "densepeds",
+                "run",
+                str(seq_dir),
+                "--frames",
+                args.frames,
+                "--out",
+                f"{tmp}/ours.txt",
+                "-q",
+            ],
+            "reference": [
+                *pin,
+                sys.executable,
+                str(REPO / "benchmarks" / "reference_pipeline.py"),
+                str(seq_dir),
+                "--frames",
+                args.frames,
+                "--out",
+                f"{tmp}/reference.txt",
+                "--threads",
+                str(args.threads),
+                "--features",
+                features,
+            ],
+        }
+        markers = {"ours": "fps (", "reference": "reference:"}
+        for rep in range(args.repeats):
+            order = ("reference", "ours") if rep % 2 == 0 else ("ours", "reference")
+            for name in order:
+                r = run_once(cmds[name], markers[name])
+                runs[name].append(r)
+                stages = ", ".join(f"{k} {v:.1f}" for k, v in r.stages.items())
+                print(
+                    f"repeat {rep + 1} {name:9s}: wall {r.wall:.1f} s, cpu {r.cpu:.1f} s "
+                    f"({stages} ms/frame)",
+                    flush=True,
+                )
+    med = {
+        name: {
+            "wall": statistics.median(r.wall for r in rs),
+            "cpu": statistics.median(r.cpu for r in rs),
+        }
+        for name, rs in runs.items()
+    }
+    print()
+    print(f"| pipeline | wall s (median of {args.repeats}) | CPU s | ms/frame by stage (median) |")
+    print("|---|---:|---:|---|")
+    for name, rs in runs.items():
+        stage_med = {k: statistics.median(r.stages[k] for r in rs) for k in rs[0].stages}
+        cells = ", ".join(f"{k} {v:.1f}" for k, v in stage_med.items())
+        print(f"| {name} | {med[name]['wall']:.1f} | {med[name]['cpu']:.1f} | {cells} |")
+    ratio = med["reference"]["wall"] / med["ours"]["wall"]
+    cpu_ratio = med["reference"]["cpu"] / med["ours"]["cpu"]
+    print(f"\nspeed-up, reference / ours: {ratio:.2f}x wall, {cpu_ratio:.2f}x CPU time")
+    print(
+        f"{args.seq} frames {args.frames}; features {features}; "
+        f"onnxruntime threads {args.threads}; "
+        f"{'pinned with ' + ' '.join(pin) if pin else 'not pinned'}; "
+        f"{len(os.sched_getaffinity(0))} CPUs; load average {os.getloadavg()[0]:.1f} at the end; "
+        f"{platform.processor() or platform.machine()}; Python {platform.python_version()}"
     )
-    table = "\n".join([*lines, "", note])
-    print(table)
-    if args.out:
-        args.out.write_text(
-            "# End-to-end pipeline speed\n\n"
-            f"Command: `python benchmarks/pipeline_speed.py --frames {args.frames} "
-            f"--features {args.features}`\n\n{table}\n",
-            encoding="utf-8",
-        )
+    if args.profile:
+        print("\nours in-process, ms/frame:")
+        for k, v in profile(seq_dir, args.frames, args.threads).items():
+            print(f"  {k}: {v:.1f}")
     return 0
 
 

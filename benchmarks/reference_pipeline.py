@@ -35,7 +35,6 @@ from densepeds.modelfiles import find_model
 from densepeds.motio import write_tracks
 from densepeds.pipeline import track_rows
 from densepeds.reid import ReID
-from densepeds.segment import crops_for
 from densepeds.tracking import Tracker
 from densepeds.types import Detections
 from densepeds.video import open_source, parse_frame_range
@@ -83,7 +82,7 @@ class ReferenceDetector:
                 preds.append(out[d.pred_index])
                 protos.append(out[d.proto_index])
             found = d.candidates(np.concatenate(preds), views, width, height)
-            dets = Detections(found.boxes, found.scores)
+            dets = Detections(found.boxes.astype(np.float32), found.scores)
         with timer.stage("masks"):
             if len(dets):
                 dets.masks, dets.mask_boxes = d.masks(
@@ -97,7 +96,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("input", help="video, image folder or MOTChallenge sequence folder")
     ap.add_argument("--frames", default=None, metavar="A:B")
     ap.add_argument("--out", type=Path, required=True)
-    ap.add_argument("--features", default="segmented", help="crops for re-ID (segment.FEATURES)")
+    ap.add_argument("--features", default="segmented", help="re-ID crops (segment.FEATURES)")
     ap.add_argument("--motion", default="frvo")
     ap.add_argument("--threads", type=int, default=2, help="onnxruntime intra-op threads")
     args = ap.parse_args(argv)
@@ -124,8 +123,7 @@ def main(argv: list[str] | None = None) -> int:
         with timer.stage("reid"):
             emb = None
             if len(dets):
-                crops = crops_for(image, dets, args.features)
-                emb = reid.embed_crops(crops)
+                emb = reid.embed(image, dets, args.features)
         with timer.stage("tracking"):
             tracks = tracker.update(dets.boxes.astype(np.float64), dets.scores, emb)
         with timer.stage("output"):

@@ -34,11 +34,19 @@ def load_model(path: Path) -> onnx.ModelProto:
         raise ModelError(f"{path} is not a readable ONNX model: {exc}") from exc
 
 
+def available_cpus() -> int:
+    """CPUs this process may run on (``taskset``/cgroup affinity), not all the machine has."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
 def session_options(threads: int | None) -> ort.SessionOptions:
     if threads is not None and threads < 1:
         raise ParameterError(f"threads must be >= 1 or None, got {threads}")
     opts = ort.SessionOptions()
-    opts.intra_op_num_threads = threads or (os.cpu_count() or 1)
+    opts.intra_op_num_threads = threads or available_cpus()
     opts.inter_op_num_threads = 1
     opts.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
     opts.log_severity_level = 3  # the int8 export triggers harmless deprecation warnings
