@@ -168,3 +168,60 @@ def test_model_given_by_name_is_looked_up(tmp_path: Path, monkeypatch: pytest.Mo
     assert ReID("mars-like.onnx", threads=1).path == tmp_path / "mars-like.onnx"
     with pytest.raises(ModelError, match="not found"):
         ReID("absent.onnx")
+
+
+def _texture(seed: int, shape: tuple[int, int] = (120, 320)) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    small = rng.integers(0, 256, (shape[0] // 4, shape[1] // 4, 3), np.uint8)
+    return cv2.resize(small, (shape[1], shape[0]), interpolation=cv2.INTER_LINEAR)
+
+
+def test_reuse_keeps_embeddings_only_where_iou_alone_decides(tmp_path: Path) -> None:
+    from densepeds.reid import ReusePolicy
+
+    model = fixed_batch_mars_like(tmp_path / "m.onnx")
+    plain = ReID(model, threads=1)
+    reuse = ReID(model, threads=1, reuse=ReusePolicy(max_reuses=2))
+    frame1 = _texture(3)
+    # A and B stand alone; C and D overlap each other (IoU 0.5): an ambiguous pair.
+    boxes1 = np.array(
+        [[10, 10, 40, 100], [100, 10, 130, 100], [200, 10, 230, 100], [210, 10, 240, 100]], float
+    )
+    dets1 = Detections(boxes1, np.ones(4))
+    e1 = reuse.embed(frame1, dets1, "bbox")
+    np.testing.assert_allclose(e1, plain.embed(frame1, dets1, "bbox"), atol=1e-6)
+    assert (reuse.embedded, reuse.reused) == (4, 0)
+    # Everyone moves 2 px right: A and B keep their embeddings, C and D are embedded anew.
+    frame2 = np.roll(frame1, 2, axis=1)
+    dets2 = Detections(boxes1 + [2, 0, 2, 0], np.ones(4))
+    e2 = reuse.embed(frame2, dets2, "bbox")
+    fresh2 = plain.embed(frame2, dets2, "bbox")
+    np.testing.assert_array_equal(e2[:2], e1[:2])
+    np.testing.assert_allclose(e2[2:], fresh2[2:], atol=1e-6)
+    assert (reuse.embedded, reuse.reused) == (6, 2)
+    # Someone else now stands in B's box (its colours changed): B is embedded again.
+    frame3 = frame2.copy()
+    frame3[10:100, 102:132] = _texture(9)[10:100, 102:132]
+    e3 = reuse.embed(frame3, dets2, "bbox")
+    np.testing.assert_array_equal(e3[0], e1[0])  # A: reused a second time in a row
+    np.testing.assert_allclose(e3[1], plain.embed(frame3, dets2, "bbox")[1], atol=1e-6)
+    # A has been reused max_reuses (2) times in a row: refreshed now, then reusable again.
+    e4 = reuse.embed(frame3, dets2, "bbox")
+    np.testing.assert_allclose(e4[0], fresh2[0], atol=1e-6)
+    np.testing.assert_array_equal(e4[1], e3[1])  # B: reused once
+    # Each feature kind has its own memory; reset() and another frame size forget it.
+    before = reuse.embedded
+    reuse.embed(frame3, dets2, "segmented")
+    assert reuse.embedded == before + 4
+    reuse.reset()
+    reuse.embed(frame3, dets2, "bbox")
+    assert reuse.embedded == before + 8
+    reuse.embed(np.ascontiguousarray(frame3[:, :300]), dets2, "bbox")
+    assert reuse.embedded == before + 12
+    # An empty frame breaks the chain too.
+    reuse.embed(frame3, Detections.empty(), "bbox")
+    reuse.embed(frame3, dets2, "bbox")
+    assert reuse.embedded == before + 16
+    for bad in ({"min_iou": 0.2, "max_other_iou": 0.3}, {"max_reuses": -1}):
+        with pytest.raises(ParameterError):
+            ReusePolicy(**bad)  # type: ignore[arg-type]
