@@ -1,0 +1,91 @@
+"""Issue 7's memory target: a long run must not grow (peak RSS after 400 frames within 10% of
+the peak after 100).
+
+    OPENBLAS_NUM_THREADS=1 python benchmarks/memory.py [--seq MOT20-01-dev] [--frames 1:400] \
+        [--at 100,200,300,400]
+
+Runs the package's pipeline with its defaults, as `densepeds run` does (detector, re-ID,
+tracker, every frame's tracks kept as output rows), over the sequence's video, and prints the
+process's peak and current resident memory after the given numbers of frames, with the
+growth of the last checkpoint over the first. Figures only: nothing is asserted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import sys
+import time
+from pathlib import Path
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+REPO = Path(__file__).resolve().parent.parent
+SHARED = Path(os.environ.get("DENSEPEDS_SHARED", REPO.parent / "shared"))
+
+
+def current_rss_mib() -> float:
+    """Resident set size now (Linux /proc; the peak where that is unavailable)."""
+    try:
+        pages = int(Path("/proc/self/statm").read_text().split()[1])
+        return pages * os.sysconf("SC_PAGE_SIZE") / 2**20
+    except (OSError, ValueError, IndexError):
+        return peak_rss_mib()
+
+
+def peak_rss_mib() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # KiB on Linux
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--seq", default="MOT20-01-dev")
+    ap.add_argument("--frames", default="1:400")
+    ap.add_argument("--at", default="100,200,300,400", help="frame counts to report after")
+    args = ap.parse_args()
+    checkpoints = sorted({int(v) for v in args.at.split(",")})
+
+    from densepeds.pipeline import Pipeline, track_rows
+    from densepeds.video import SequenceSource
+
+    seq_dir = SHARED / "data" / args.seq
+    if not seq_dir.is_dir():
+        raise SystemExit(f"{seq_dir}: missing (set DENSEPEDS_SHARED to the shared data folder)")
+    src = SequenceSource(seq_dir)
+    start = time.perf_counter()
+    pipe = Pipeline("yoloseg")
+    pipe.detector()
+    pipe.reid()
+    print(f"models loaded: peak {peak_rss_mib():.0f} MiB, now {current_rss_mib():.0f} MiB")
+    rows: list[tuple[float, ...]] = []  # `densepeds run` keeps these to write at the end
+    table: list[tuple[int, float, float, int]] = []
+    frames = 0
+    for frame_no, tracks in pipe.run(src, args.frames):
+        rows.extend(track_rows(frame_no, tracks))
+        frames += 1
+        if frames in checkpoints:
+            table.append((frames, peak_rss_mib(), current_rss_mib(), len(rows)))
+            print(
+                f"after {frames} frames: peak {table[-1][1]:.0f} MiB, now {table[-1][2]:.0f} MiB "
+                f"({time.perf_counter() - start:.0f} s)",
+                flush=True,
+            )
+    if frames < max(checkpoints):
+        print(f"note: the range held only {frames} frames", file=sys.stderr)
+    print("\n| frames | peak RSS MiB | RSS now MiB | output rows |")
+    print("|---:|---:|---:|---:|")
+    for n, peak, now, nrows in table:
+        print(f"| {n} | {peak:.0f} | {now:.0f} | {nrows} |")
+    if len(table) >= 2:
+        first, last = table[0], table[-1]
+        growth = 100 * (last[1] / first[1] - 1)
+        print(
+            f"\npeak RSS after {last[0]} frames is {growth:+.1f}% of the peak after {first[0]} "
+            f"({args.seq}, {pipe.times.fps:.2f} fps; {pipe.times.breakdown()})"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
