@@ -187,13 +187,13 @@ def test_reuse_keeps_embeddings_only_where_iou_alone_decides(tmp_path: Path) -> 
     boxes1 = np.array(
         [[10, 10, 40, 100], [100, 10, 130, 100], [200, 10, 230, 100], [210, 10, 240, 100]], float
     )
-    dets1 = Detections(boxes1, np.ones(4))
+    dets1 = Detections(boxes1, np.ones(4, np.float32))
     e1 = reuse.embed(frame1, dets1, "bbox")
     np.testing.assert_allclose(e1, plain.embed(frame1, dets1, "bbox"), atol=1e-6)
     assert (reuse.embedded, reuse.reused) == (4, 0)
     # Everyone moves 2 px right: A and B keep their embeddings, C and D are embedded anew.
     frame2 = np.roll(frame1, 2, axis=1)
-    dets2 = Detections(boxes1 + [2, 0, 2, 0], np.ones(4))
+    dets2 = Detections(boxes1 + [2, 0, 2, 0], np.ones(4, np.float32))
     e2 = reuse.embed(frame2, dets2, "bbox")
     fresh2 = plain.embed(frame2, dets2, "bbox")
     np.testing.assert_array_equal(e2[:2], e1[:2])
