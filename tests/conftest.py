@@ -22,3 +22,9 @@ def shared_path(*parts: str) -> Path:
 @pytest.fixture
 def shared() -> Path:
     return shared_path()
+
+
+# Model lookup by bare name (the CLI's defaults) finds the shared models wherever the package is
+# installed; an explicit DENSEPEDS_MODEL_DIR from the environment still wins.
+if (SHARED / "models").is_dir():
+    os.environ.setdefault("DENSEPEDS_MODEL_DIR", str(SHARED / "models"))

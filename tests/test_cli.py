@@ -90,7 +90,7 @@ def test_model_mismatch(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> N
 
 
 def test_python_m_prints_no_traceback(tmp_path: Path) -> None:
-    env = dict(os.environ, PYTHONPATH=str(REPO / "python"))
+    env = dict(os.environ)  # the installed package, as a user runs it
     proc = subprocess.run(
         [sys.executable, "-m", "densepeds", "eval", "--gt", str(tmp_path / "x"), "--tracks", "t"],
         capture_output=True,

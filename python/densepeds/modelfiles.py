@@ -41,8 +41,13 @@ def search_dirs() -> list[Path]:
     if env:
         dirs.extend(Path(p).expanduser() for p in env.split(os.pathsep) if p)
     dirs.append(CACHE_DIR.expanduser())
-    # Development checkout: <repo>/python/densepeds/modelfiles.py -> <repo>/../shared/models.
-    dirs.append(Path(__file__).resolve().parents[3] / "shared" / "models")
+    # Development: the shared models beside the checkout, whether the package runs from the source
+    # tree (<repo>/python/densepeds) or is installed as a wheel and run from the repo root.
+    candidates = [Path(__file__).resolve().parents[3] / "shared" / "models"]
+    candidates.append(Path.cwd().resolve().parent / "shared" / "models")
+    for d in candidates:
+        if d not in dirs:
+            dirs.append(d)
     return dirs
 
 
