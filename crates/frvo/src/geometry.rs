@@ -69,6 +69,13 @@ impl Polygon {
         }
     }
 
+    /// Replaces the vertices with those `fill` writes to the front of the storage (it returns
+    /// how many): lets a hot loop write with a local index, without a length check per vertex.
+    #[inline]
+    pub fn fill(&mut self, fill: impl FnOnce(&mut [V2; MAX_VERTICES]) -> usize) {
+        self.len = fill(&mut self.pts).min(MAX_VERTICES);
+    }
+
     /// Empties the polygon (the storage is reused, not cleared).
     #[inline]
     pub fn clear(&mut self) {

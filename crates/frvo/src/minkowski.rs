@@ -4,7 +4,7 @@
 //! ([`prepare`]: vertices from the lowest one, closed, with edge vectors) and [`merge_prepared`]
 //! only merges; [`minkowski_sum`] is the one-off form on [`Polygon`]s.
 
-use crate::geometry::{cross, lowest_vertex, Polygon, V2};
+use crate::geometry::{cross, lowest_vertex, Polygon, MAX_VERTICES, V2};
 
 /// Appends a counter-clockwise polygon prepared for [`merge_prepared`]: its `n` vertices
 /// starting at the lowest one (where edge angles begin at 0) followed by that vertex again
@@ -25,34 +25,42 @@ pub fn prepare(poly: &[V2], pts: &mut Vec<V2>, edges: &mut Vec<V2>) {
 /// `a ⊕ b` for polygons prepared by [`prepare`] (`a`: `n + 1` points and `n` edges, likewise
 /// `b`), written to `out` (cleared first). At each step the edge that turns least is taken
 /// (both when parallel or undefined), so the result is counter-clockwise, starts at the lowest
-/// vertex and has at most `n + m` vertices.
+/// vertex and has at most `n + m` vertices (truncated to [`MAX_VERTICES`]).
 #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN must advance, see below
 #[inline]
 pub fn merge_prepared(a: &[V2], ea: &[V2], b: &[V2], eb: &[V2], out: &mut Polygon) {
-    out.clear();
     let (n, m) = (
         ea.len().min(a.len().saturating_sub(1)),
         eb.len().min(b.len().saturating_sub(1)),
     );
-    let (mut i, mut j) = (0, 0);
-    // Branch-free advance: which edge comes next is data-dependent, so a branch would
-    // mispredict about every other vertex.
-    while i < n && j < m {
-        out.push(a[i] + b[j]);
-        let turn = cross(ea[i], eb[j]);
-        // Written with negations so that a NaN advances both walks (no endless loop).
-        i += usize::from(!(turn < 0.0));
-        j += usize::from(!(turn > 0.0));
+    if n == 0 || m == 0 {
+        out.clear();
+        return;
     }
-    // One walk is done (back at its first vertex); finish the other.
-    if n > 0 && m > 0 {
-        for &q in &a[i..n] {
-            out.push(q + b[j]);
+    let (a, ea, b, eb) = (&a[..=n], &ea[..n], &b[..=m], &eb[..m]);
+    out.fill(|buf| {
+        let (mut i, mut j, mut k) = (0, 0, 0);
+        // Branch-free advance: which edge comes next is data-dependent, so a branch would
+        // mispredict about every other vertex.
+        while i < n && j < m && k < MAX_VERTICES {
+            buf[k] = a[i] + b[j];
+            k += 1;
+            let turn = cross(ea[i], eb[j]);
+            // Written with negations so that a NaN advances both walks (no endless loop).
+            i += usize::from(!(turn < 0.0));
+            j += usize::from(!(turn > 0.0));
         }
-        for &q in &b[j..m] {
-            out.push(a[n] + q);
+        // One walk is done (back at its first vertex); finish the other.
+        for (slot, &q) in buf[k..].iter_mut().zip(&a[i..n]) {
+            *slot = q + b[j];
+            k += 1;
         }
-    }
+        for (slot, &q) in buf[k..].iter_mut().zip(&b[j..m]) {
+            *slot = a[i] + q;
+            k += 1;
+        }
+        k
+    });
 }
 
 /// `a ⊕ b` for counter-clockwise convex polygons (see [`merge_prepared`]).

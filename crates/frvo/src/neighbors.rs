@@ -14,9 +14,10 @@ pub struct NeighborGrid {
     min: V2,
     nx: usize,
     ny: usize,
-    /// Agents of cell `c` are `items[starts[c]..starts[c + 1]]`.
+    /// Agents of cell `c` are `items[starts[c]..starts[c + 1]]`, stored with their positions
+    /// so that a query reads memory in order.
     starts: Vec<u32>,
-    items: Vec<u32>,
+    items: Vec<(V2, u32)>,
 }
 
 impl NeighborGrid {
@@ -59,7 +60,8 @@ impl NeighborGrid {
         for c in 0..cells {
             self.starts[c + 1] += self.starts[c];
         }
-        self.items.resize(self.starts[cells] as usize, 0);
+        self.items
+            .resize(self.starts[cells] as usize, (V2::zeros(), 0));
         let mut fill = self.starts[..cells].to_vec();
         for (i, (p, _)) in positions
             .iter()
@@ -68,7 +70,7 @@ impl NeighborGrid {
             .filter(|(_, (_, &ok))| ok)
         {
             let c = self.cell_of(*p);
-            self.items[fill[c] as usize] = i as u32;
+            self.items[fill[c] as usize] = (*p, i as u32);
             fill[c] += 1;
         }
     }
@@ -110,14 +112,10 @@ impl NeighborGrid {
         for iy in cy.saturating_sub(1)..(cy + 2).min(self.ny) {
             for ix in cx.saturating_sub(1)..(cx + 2).min(self.nx) {
                 let c = iy * self.nx + ix;
-                for &j in &self.items[self.starts[c] as usize..self.starts[c + 1] as usize] {
-                    let j = j as usize;
-                    if j == me {
-                        continue;
-                    }
-                    let d2 = (positions[j] - p).norm_squared();
-                    if d2 < r2 {
-                        insert_nearest(out, max, (d2, j));
+                for &(q, j) in &self.items[self.starts[c] as usize..self.starts[c + 1] as usize] {
+                    let d2 = (q - p).norm_squared();
+                    if d2 < r2 && j as usize != me {
+                        insert_nearest(out, max, (d2, j as usize));
                     }
                 }
             }

@@ -60,6 +60,21 @@ pub fn avoidance_with(
     dt: f64,
     scratch: &mut AvoidanceScratch,
 ) -> Avoidance {
+    avoidance_apart(p, sum, w, tau, dt, scratch).0
+}
+
+/// [`avoidance_with`], and whether the shapes were apart (the truncated-cone branch). Apart,
+/// the computation is exactly antisymmetric: swapping the two agents negates `p`, `w` and the
+/// Minkowski sum (the same vertices, negated, from another start), and every step then
+/// yields the negated result bit for bit, so a caller may reuse it for the reverse pair.
+pub(crate) fn avoidance_apart(
+    p: V2,
+    sum: &[V2],
+    w: V2,
+    tau: f64,
+    dt: f64,
+    scratch: &mut AvoidanceScratch,
+) -> (Avoidance, bool) {
     let pts = sum;
     let n = pts.len().min(MAX_VERTICES);
     let feats = &mut scratch.feats;
@@ -83,6 +98,7 @@ pub fn avoidance_with(
             first = Some(starts.trailing_zeros() as usize);
         }
     }
+    let apart = first.is_some();
     match first {
         Some(first) => {
             let inv_tau = 1.0 / tau;
@@ -130,7 +146,7 @@ pub fn avoidance_with(
             }
         }
     }
-    nearest_boundary(feats, w)
+    (nearest_boundary(feats, w), apart)
 }
 
 fn unit(v: V2) -> V2 {

@@ -8,7 +8,7 @@ use crate::minkowski;
 use crate::model::{MotionKind, MotionModel, MotionParams};
 use crate::neighbors::NeighborGrid;
 use crate::velocity_obstacle::{
-    avoidance_circle, avoidance_with, reciprocal_line, AvoidanceScratch,
+    avoidance_apart, avoidance_circle, reciprocal_line, Avoidance, AvoidanceScratch,
 };
 
 /// How a pedestrian's footprint is built from its axes.
@@ -37,6 +37,11 @@ pub struct Orca {
     neg_pts: Vec<V2>,
     neg_edges: Vec<V2>,
     radii: Vec<f64>,
+    /// Neighbours of agent `i`, nearest first: `nbr[nbr_start[i]..nbr_start[i + 1]]`.
+    nbr_start: Vec<u32>,
+    nbr: Vec<u32>,
+    /// Per neighbour slot (FRVO): the avoidance when the pair was apart, for the reverse pair.
+    avoid: Vec<Option<Avoidance>>,
     feasible: Vec<bool>,
     // Per-agent scratch, reused across agents and steps.
     polygon: Vec<V2>,
@@ -63,6 +68,9 @@ impl Orca {
             neg_pts: Vec::new(),
             neg_edges: Vec::new(),
             radii: Vec::new(),
+            nbr_start: Vec::new(),
+            nbr: Vec::new(),
+            avoid: Vec::new(),
             feasible: Vec::new(),
             polygon: Vec::new(),
             negated: Vec::new(),
@@ -84,6 +92,35 @@ impl Orca {
     /// (non-finite position or velocity).
     pub fn last_feasible(&self) -> &[bool] {
         &self.feasible
+    }
+
+    /// Every valid agent's neighbour list (nearest first, at most `max_neighbors`).
+    fn find_neighbors(&mut self) {
+        self.nbr_start.clear();
+        self.nbr.clear();
+        self.nbr_start.push(0);
+        for i in 0..self.positions.len() {
+            if self.valid[i] {
+                self.grid.query(
+                    &self.positions,
+                    i,
+                    self.params.max_neighbors,
+                    &mut self.neighbors,
+                );
+                self.nbr
+                    .extend(self.neighbors.iter().map(|&(_, j)| j as u32));
+            }
+            self.nbr_start.push(self.nbr.len() as u32);
+        }
+    }
+
+    /// The slot of `i` in `j`'s neighbour list, if there.
+    fn reverse_slot(&self, j: usize, i: usize) -> Option<usize> {
+        let start = self.nbr_start[j] as usize;
+        let list = &self.nbr[start..self.nbr_start[j + 1] as usize];
+        list.iter()
+            .position(|&k| k as usize == i)
+            .map(|t| start + t)
     }
 
     /// Builds every agent's polygon once per step (no trigonometry: the unit polygon is cached)
@@ -173,21 +210,23 @@ impl MotionModel for Orca {
         }
         self.grid
             .build(&self.positions, &self.valid, p.neighbor_radius);
+        self.find_neighbors();
         self.feasible.clear();
+        self.avoid.clear();
 
         let sides = self.unit.sides();
         let mut out = Vec::with_capacity(agents.len());
         for (i, a) in agents.iter().enumerate() {
             let pref = finite_pref(a);
+            let slots = self.nbr_start[i] as usize..self.nbr_start[i + 1] as usize;
             if !self.valid[i] {
                 out.push(pref);
                 self.feasible.push(false);
                 continue;
             }
-            self.grid
-                .query(&self.positions, i, p.max_neighbors, &mut self.neighbors);
             self.lines.clear();
-            for &(_, j) in &self.neighbors {
+            for slot in slots {
+                let j = self.nbr[slot] as usize;
                 let b = &agents[j];
                 let (mut rel_pos, rel_vel) = (b.pos - a.pos, a.vel - b.vel);
                 if rel_pos.norm_squared() < 1e-18 {
@@ -197,18 +236,38 @@ impl MotionModel for Orca {
                 }
                 let avoid = match self.footprint {
                     Footprint::Ellipse => {
-                        // B ⊕ (-A), from the prepared polygons.
-                        let (pb, eb) = prepared(&self.shape_pts, &self.shape_edges, sides, j);
-                        let (pa, ea) = prepared(&self.neg_pts, &self.neg_edges, sides, i);
-                        minkowski::merge_prepared(pb, eb, pa, ea, &mut self.sum);
-                        avoidance_with(
-                            rel_pos,
-                            self.sum.points(),
-                            rel_vel,
-                            p.time_horizon,
-                            dt,
-                            &mut self.vo_scratch,
-                        )
+                        // Agent j, if already done and i among its neighbours, computed the
+                        // reverse pair: apart, that is exactly the negation.
+                        let reverse = (j < i)
+                            .then(|| self.reverse_slot(j, i))
+                            .flatten()
+                            .and_then(|t| self.avoid[t]);
+                        let (avoid, apart) = match reverse {
+                            Some(r) => (
+                                Avoidance {
+                                    u: -r.u,
+                                    normal: -r.normal,
+                                },
+                                false,
+                            ),
+                            None => {
+                                // B ⊕ (-A), from the prepared polygons.
+                                let (pb, eb) =
+                                    prepared(&self.shape_pts, &self.shape_edges, sides, j);
+                                let (pa, ea) = prepared(&self.neg_pts, &self.neg_edges, sides, i);
+                                minkowski::merge_prepared(pb, eb, pa, ea, &mut self.sum);
+                                avoidance_apart(
+                                    rel_pos,
+                                    self.sum.points(),
+                                    rel_vel,
+                                    p.time_horizon,
+                                    dt,
+                                    &mut self.vo_scratch,
+                                )
+                            }
+                        };
+                        self.avoid.push(apart.then_some(avoid));
+                        avoid
                     }
                     Footprint::Circle => {
                         let r = self.radii[i] + self.radii[j];
