@@ -20,7 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from densepeds.errors import InputError, ParameterError
-from densepeds.pipeline import FEATURES, MOTIONS, Pipeline, track_rows
+from densepeds.pipeline import DEFAULT_FEATURES, FEATURES, MOTIONS, Pipeline, track_rows
 from densepeds.types import Detections
 from densepeds.video import FrameRange, FrameSource, SequenceSource, parse_frame_range
 
@@ -130,8 +130,15 @@ def _prepare(
     return _Prepared(src.name, gt_dir, frames)
 
 
+# The method's ablation rows; the package's default features are added where they differ.
+ABLATION_FEATURES = ("segmented", "bbox", "none")
+
+
 def _default_kinds(has_images: bool) -> list[str]:
-    return list(FEATURES) if has_images else ["none"]
+    if not has_images:
+        return ["none"]
+    extra = [] if DEFAULT_FEATURES in ABLATION_FEATURES else [DEFAULT_FEATURES]
+    return [*extra, *ABLATION_FEATURES]
 
 
 def run_ablation(
@@ -171,7 +178,7 @@ def run_ablation(
             from densepeds.scene import make_scene
 
             scene = make_scene(seed=scene_seed)
-            kinds = list(features or FEATURES)
+            kinds = list(features or ABLATION_FEATURES)  # the scene's embedder: no masked_*
             gt_dir = _cut_gt_scene(scene, rng, tmp / "gt")
             prepared.append(
                 _prepare(
@@ -217,7 +224,9 @@ def run_ablation(
             for kind in kinds:
                 out_dir = tmp / f"{motion}-{kind}"
                 for prep in prepared:
-                    pipe = Pipeline(None, motion=motion, features=kind, **params)
+                    # The detector named (never run here: detections are given) selects the
+                    # pipeline's preset for CNN detections, as in `densepeds run`.
+                    pipe = Pipeline(detector, motion=motion, features=kind, **params)
                     rows: list[tuple[float, ...]] = []
                     for fr in prep.frames:
                         emb = fr.embeddings.get(kind)

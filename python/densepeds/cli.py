@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from densepeds.errors import DensePedsError, ParameterError
-from densepeds.pipeline import DETECTORS, FEATURES, MOTIONS
+from densepeds.pipeline import DEFAULT_FEATURES, DETECTORS, FEATURES, MOTIONS
 
 EXIT_USAGE = 2
 COMMANDS = ("run", "eval", "ablate", "scene")
@@ -78,7 +78,10 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument(
         "--features",
         choices=FEATURES,
-        help="appearance features (default: segmented where there are frames, else none)",
+        help=f"appearance features: segmented (the method's white fill outside the mask), bbox "
+        f"(plain crop), masked_pool (mask-weighted pooling of the re-ID features), masked_mean, "
+        f"masked_blur (other fills), none (motion only); default: {DEFAULT_FEATURES} where "
+        f"there are frames (segmented on the built-in scene), else none",
     )
     run.add_argument("--frames", metavar="A:B", help="frame range, 1-based and inclusive")
     run.add_argument("--out", metavar="TRACKS.txt", type=Path, help="tracks output file")
@@ -212,7 +215,7 @@ def _summary(name: str, frames: int, n_ids: int, out: Path, pipe: Any, video: Pa
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from densepeds.motio import read_detections
-    from densepeds.pipeline import Pipeline
+    from densepeds.pipeline import Pipeline, default_features
     from densepeds.video import SequenceSource, open_source, parse_frame_range
 
     parse_frame_range(args.frames)  # a bad range fails before any work
@@ -226,7 +229,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         if not has_images:
             raise ParameterError(f"{args.input}: no images and no det/det.txt to track from")
         detector = "yoloseg"
-    features = args.features or ("segmented" if has_images else "none")
+    features = args.features or default_features(has_images)
     if features != "none" and not has_images:
         raise ParameterError(
             f"--features {features} needs frames, and {args.input} has none (use --features none)"

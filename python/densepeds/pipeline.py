@@ -35,12 +35,28 @@ __all__ = [
     "FrameResult",
     "Pipeline",
     "StageTimes",
+    "default_features",
+    "suppress_duplicates",
     "track_rows",
 ]
 
 MOTIONS = ("frvo", "rvo", "sf", "cv")
-FEATURES = ("segmented", "bbox", "none")
+# segmented: the method's white fill outside the mask; bbox: the plain crop; masked_*: other
+# maskings (densepeds.segment); none: motion only.
+FEATURES = ("segmented", "bbox", "none", "masked_pool", "masked_mean", "masked_blur")
+DEFAULT_FEATURES = "segmented"
 DETECTORS = ("yoloseg", "maskrcnn")
+# Pipeline-level options (the rest of the keyword arguments go to the tracker), applied to the
+# detections of a CNN detector before tracking; a det.txt is tracked as it is.
+DETECTION_OPTIONS = ("min_score", "nms_iou", "nms_containment")
+# One preset for every video tracked from a CNN detector (see benchmarks/results/realvideo.md);
+# tracking from det.txt keeps the tracker's own defaults.
+CNN_DETECTION_DEFAULTS: dict[str, float] = {
+    "min_score": 0.15,  # the detector's own floor: low scores extend tracks, never start them
+    "nms_iou": 1.0,  # 1.0: no extra suppression
+    "nms_containment": 1.0,
+}
+CNN_TRACKER_DEFAULTS: dict[str, Any] = {}
 STAGES = ("decode", "detection", "reid", "tracking", "output")
 Image = npt.NDArray[np.uint8]
 
@@ -100,6 +116,38 @@ def track_rows(frame_no: int, tracks: Tracks) -> list[tuple[float, ...]]:
     ]
 
 
+def suppress_duplicates(
+    dets: Detections, iou: float = 1.0, containment: float = 1.0
+) -> npt.NDArray[np.intp]:
+    """Indices (ascending) of the detections kept by greedy suppression, best score first, of
+    boxes overlapping a kept one by IoU > ``iou`` or covered by more than ``containment`` of
+    their own area (a person cut at a tile's edge inside the whole-frame box of the same
+    person). 1.0 for both keeps everything."""
+    n = len(dets)
+    if n < 2 or (iou >= 1.0 and containment >= 1.0):
+        return np.arange(n)
+    b = dets.boxes.astype(np.float64)
+    area = np.maximum(b[:, 2] - b[:, 0], 0) * np.maximum(b[:, 3] - b[:, 1], 0)
+    iw = np.minimum(b[:, None, 2], b[None, :, 2]) - np.maximum(b[:, None, 0], b[None, :, 0])
+    ih = np.minimum(b[:, None, 3], b[None, :, 3]) - np.maximum(b[:, None, 1], b[None, :, 1])
+    inter = np.clip(iw, 0, None) * np.clip(ih, 0, None)
+    union = area[:, None] + area[None, :] - inter
+    overlap = inter / np.maximum(union, 1e-9)
+    covered = inter / np.maximum(area[:, None], 1e-9)  # [i, j]: share of box i inside box j
+    keep = np.zeros(n, bool)
+    suppressed = np.zeros(n, bool)
+    for i in np.argsort(-dets.scores, kind="stable"):
+        if not suppressed[i]:
+            keep[i] = True
+            suppressed |= (overlap[i] > iou) | (covered[:, i] > containment)
+    return np.flatnonzero(keep)
+
+
+def default_features(has_images: bool) -> str:
+    """The appearance features used where there are frames; motion only where there are none."""
+    return DEFAULT_FEATURES if has_images else "none"
+
+
 def _check_choice(what: str, value: str, allowed: tuple[str, ...]) -> str:
     if value not in allowed:
         raise ParameterError(f"{what} {value!r}: expected one of {', '.join(allowed)}")
@@ -125,7 +173,7 @@ class Pipeline:
         detector: None | str | Any = None,
         reid: None | str | os.PathLike[str] | Embedder = None,
         motion: str = "frvo",
-        features: str = "segmented",
+        features: str = DEFAULT_FEATURES,
         *,
         detector_model: str | os.PathLike[str] | None = None,
         detector_options: Mapping[str, Any] | None = None,
@@ -144,6 +192,13 @@ class Pipeline:
         self._detector_options = dict(detector_options or {})
         self._reid_spec = reid
         self._reid: Embedder | None = reid if hasattr(reid, "embed") else None  # type: ignore[assignment]
+        options = {k: tracker_params.pop(k) for k in DETECTION_OPTIONS if k in tracker_params}
+        if detector is not None:
+            # A CNN detector's boxes: the preset for CNN detections, then the caller's values.
+            options = {**CNN_DETECTION_DEFAULTS, **options}
+            if tracker is None:
+                tracker_params = {**CNN_TRACKER_DEFAULTS, **tracker_params}
+        self.detection_options = options
         self.tracker_params = tracker_params
         if tracker is None:
             from densepeds.tracking import Tracker
@@ -214,13 +269,38 @@ class Pipeline:
                     f"embeddings must be [N, D] for {len(detections)} detections, "
                     f"got {embeddings.shape}"
                 )
-        elif frame is not None and self.features != "none" and len(detections):
+        kept = None
+        if self.detection_options:
+            with self.times.stage("detection"):
+                kept = self._kept(detections)
+                if len(kept) < len(detections):
+                    detections = detections.subset(kept)
+                    embeddings = None if embeddings is None else embeddings[kept]
+                else:
+                    kept = None
+        if embeddings is None and frame is not None and self.features != "none" and len(detections):
             with self.times.stage("reid"):
                 embeddings = self.reid().embed(frame, detections, features=self.features)
         with self.times.stage("tracking"):
-            return self.tracker.update(
+            tracks = self.tracker.update(
                 detections.boxes.astype(np.float64), detections.scores, embeddings
             )
+        if kept is not None:  # det_index refers to the detections as given
+            matched = tracks.det_index >= 0
+            index = tracks.det_index.copy()
+            index[matched] = kept[index[matched]]
+            tracks = tracks._replace(det_index=index)
+        return tracks
+
+    def _kept(self, dets: Detections) -> npt.NDArray[np.intp]:
+        """Indices of the detections tracked: score floor, then duplicate suppression."""
+        opt = self.detection_options
+        index = np.arange(len(dets))
+        min_score = opt.get("min_score")
+        if min_score is not None:
+            index = index[dets.scores >= min_score]
+        iou, containment = opt.get("nms_iou", 1.0), opt.get("nms_containment", 1.0)
+        return index[suppress_duplicates(dets.subset(index), iou, containment)]
 
     def step(
         self,

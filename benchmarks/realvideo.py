@@ -1,0 +1,329 @@
+"""The full pipeline on the two real videos: accuracy of the package defaults and the ablation.
+
+    OPENBLAS_NUM_THREADS=1 python benchmarks/realvideo.py --write benchmarks/results/realvideo.md
+
+Detections (the shared tiled YOLOv8n-seg at the detector's own threshold, masks included) and
+the appearance features of every detection (one file per feature kind) are computed once per
+video and cached under ``--cache`` (default ``out/cache``); every row then only reruns tracking
+through ``densepeds.Pipeline.step`` (the same code as ``densepeds run``, so the pipeline's
+detection filtering and tracker preset apply) and scores it with ``densepeds.evaluate``.
+A cache file is keyed by the video, the frame range, the detector settings and the model files'
+sizes and dates; delete the folder to recompute. ``--param KEY=VALUE`` overrides a pipeline or
+tracker default for a sweep (sweeps take seconds once the cache exists).
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import sys
+import tempfile
+import time
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # numpy BLAS threads fight onnxruntime's
+
+import numpy as np
+import numpy.typing as npt
+
+REPO = Path(__file__).resolve().parent.parent
+SHARED = Path(os.environ.get("DENSEPEDS_SHARED", REPO.parent / "shared"))
+VIDEOS = (("MOT20-01-dev", "1:214"), ("PETS09-S2L1-dev", "1:397"))
+ABLATION = (
+    ("frvo", "default"),
+    ("frvo", "segmented"),
+    ("frvo", "bbox"),
+    ("frvo", "none"),
+    ("cv", "default"),
+    ("cv", "segmented"),
+    ("cv", "bbox"),
+    ("cv", "none"),
+)
+COLUMNS = ("HOTA", "IDF1", "MOTA", "MOTP", "MT", "ML", "FP", "FN", "IDSW", "IDs")
+
+
+@dataclass
+class CachedVideo:
+    """One video's detections and per-kind embeddings, frame by frame."""
+
+    name: str
+    seq_dir: Path
+    first: int
+    dets: list[Any]  # densepeds.types.Detections per frame
+    embeddings: dict[str, list[npt.NDArray[np.float32]]]
+
+
+def _model_stamp(name: str) -> str:
+    from densepeds.modelfiles import find_model
+
+    p = find_model(name)
+    st = p.stat()
+    return f"{p.name}:{st.st_size}:{int(st.st_mtime)}"
+
+
+def _cache_key(seq: str, frames: str, detector_options: dict[str, Any]) -> str:
+    from densepeds.detect import DEFAULT_MODELS
+
+    text = json.dumps(
+        [seq, frames, sorted(detector_options.items()), _model_stamp(DEFAULT_MODELS["yoloseg"])]
+    )
+    return hashlib.sha1(text.encode()).hexdigest()[:10]
+
+
+def _save_dets(path: Path, dets: Sequence[Any]) -> None:
+    counts = np.array([len(d) for d in dets], np.int64)
+    boxes = np.concatenate([d.boxes for d in dets]) if dets else np.zeros((0, 4), np.float32)
+    scores = np.concatenate([d.scores for d in dets]) if dets else np.zeros(0, np.float32)
+    mask_boxes = np.zeros((len(boxes), 4), np.int32)
+    flat: list[npt.NDArray[np.bool_]] = []
+    row = 0
+    for d in dets:
+        for i in range(len(d)):
+            assert d.masks is not None and d.mask_boxes is not None
+            mask_boxes[row] = d.mask_boxes[i]
+            flat.append(d.masks[i].reshape(-1))
+            row += 1
+    bits = np.packbits(np.concatenate(flat)) if flat else np.zeros(0, np.uint8)
+    tmp = path.with_suffix(".tmp.npz")
+    np.savez_compressed(
+        tmp, counts=counts, boxes=boxes, scores=scores, mask_boxes=mask_boxes, mask_bits=bits
+    )
+    os.replace(tmp, path)
+
+
+def _load_dets(path: Path) -> list[Any]:
+    from densepeds.types import Detections
+
+    z = np.load(path)
+    counts, boxes, scores, mboxes = z["counts"], z["boxes"], z["scores"], z["mask_boxes"]
+    sizes = (mboxes[:, 2] - mboxes[:, 0]) * (mboxes[:, 3] - mboxes[:, 1])
+    bits = np.unpackbits(z["mask_bits"], count=int(sizes.sum())).astype(bool)
+    offsets = np.concatenate([[0], np.cumsum(sizes)])
+    out = []
+    start = 0
+    for n in counts.tolist():
+        idx = range(start, start + n)
+        masks = [
+            bits[offsets[i] : offsets[i + 1]].reshape(
+                mboxes[i, 3] - mboxes[i, 1], mboxes[i, 2] - mboxes[i, 0]
+            )
+            for i in idx
+        ]
+        out.append(
+            Detections(
+                boxes[start : start + n],
+                scores[start : start + n],
+                masks,
+                mboxes[start : start + n],
+            )
+        )
+        start += n
+    return out
+
+
+def _frames(seq_dir: Path, frames: str) -> Iterator[tuple[int, npt.NDArray[np.uint8]]]:
+    from densepeds.video import SequenceSource, parse_frame_range
+
+    src = SequenceSource(seq_dir)
+    for frame_no, image in src.frames(parse_frame_range(frames)):
+        assert image is not None
+        yield frame_no, image
+
+
+def load_video(
+    seq: str,
+    frames: str,
+    kinds: Sequence[str],
+    cache: Path,
+    detector_options: dict[str, Any],
+    quiet: bool = False,
+) -> CachedVideo:
+    """Detections and embeddings of ``kinds`` for a video, computed where not cached."""
+    from densepeds.pipeline import Pipeline
+
+    seq_dir = SHARED / "data" / seq
+    if not seq_dir.is_dir():
+        sys.exit(f"{seq_dir}: missing (the shared data beside the repo; set DENSEPEDS_SHARED)")
+    cache.mkdir(parents=True, exist_ok=True)
+    key = _cache_key(seq, frames, detector_options)
+    det_file = cache / f"{seq}-{key}-dets.npz"
+    helper = Pipeline("yoloseg", detector_options=detector_options, features="none")
+    if not det_file.is_file():
+        t0 = time.perf_counter()
+        det = helper.detector()
+        dets = [det(image) for _, image in _frames(seq_dir, frames)]
+        _save_dets(det_file, dets)
+        if not quiet:
+            print(
+                f"{seq}: detected {len(dets)} frames in {time.perf_counter() - t0:.0f} s",
+                file=sys.stderr,
+            )
+    dets = _load_dets(det_file)
+    embeddings: dict[str, list[npt.NDArray[np.float32]]] = {}
+    for kind in kinds:
+        emb_file = (
+            cache
+            / f"{seq}-{key}-{kind}-{_model_stamp('osnet_x0_25_msmt17.onnx').split(':')[1]}.npz"
+        )
+        if not emb_file.is_file():
+            t0 = time.perf_counter()
+            reid = helper.reid()
+            rows = [
+                reid.embed(image, d, features=kind)
+                for (_, image), d in zip(_frames(seq_dir, frames), dets, strict=True)
+            ]
+            tmp = emb_file.with_suffix(".tmp.npz")
+            np.savez(tmp, emb=np.concatenate(rows), counts=[len(r) for r in rows])
+            os.replace(tmp, emb_file)
+            if not quiet:
+                print(
+                    f"{seq}: embedded ({kind}) in {time.perf_counter() - t0:.0f} s", file=sys.stderr
+                )
+        z = np.load(emb_file)
+        embeddings[kind] = np.split(z["emb"], np.cumsum(z["counts"])[:-1])
+    first = int(frames.split(":")[0])
+    return CachedVideo(seq, seq_dir, first, dets, embeddings)
+
+
+def track_video(
+    video: CachedVideo,
+    motion: str,
+    features: str,
+    params: dict[str, Any],
+    out_file: Path,
+) -> None:
+    """Track the cached video through ``densepeds.Pipeline`` and write MOTChallenge rows."""
+    from densepeds.motio import write_tracks
+    from densepeds.pipeline import Pipeline, track_rows
+
+    pipe = Pipeline("yoloseg", motion=motion, features=features, **params)
+    kind = pipe.features
+    rows: list[tuple[float, ...]] = []
+    for k, dets in enumerate(video.dets):
+        emb = None if kind == "none" else video.embeddings[kind][k]
+        tracks = pipe.step(None, dets, embeddings=emb)
+        rows.extend(track_rows(k + 1, tracks))
+    write_tracks(out_file, rows)
+
+
+def gt_dir(video: CachedVideo, frames: str, root: Path) -> Path:
+    from densepeds.ablate import cut_gt
+    from densepeds.video import SequenceSource, parse_frame_range
+
+    src = SequenceSource(video.seq_dir)
+    return cut_gt(src, parse_frame_range(frames).clip(src.length or 0), root)
+
+
+def score(
+    videos: Sequence[tuple[CachedVideo, str]],
+    motion: str,
+    features: str,
+    params: dict[str, Any],
+    tmp: Path,
+) -> dict[str, dict[str, float]]:
+    """Metrics per video name for one (motion, features, params) setting."""
+    from densepeds.evaluate import evaluate
+
+    out: dict[str, dict[str, float]] = {}
+    for video, frames in videos:
+        gt_root = tmp / "gt"
+        gt = gt_root / video.name
+        if not gt.is_dir():
+            gt = gt_dir(video, frames, gt_root)
+        tracks = tmp / f"{motion}-{features}-{video.name}.txt"
+        track_video(video, motion, features, params, tracks)
+        out[video.name] = evaluate([gt], tracks).combined
+    return out
+
+
+def _param(text: str) -> tuple[str, Any]:
+    key, _, raw = text.partition("=")
+    for kind in (int, float):
+        try:
+            return key, kind(raw)
+        except ValueError:
+            pass
+    if raw.lower() in ("true", "false"):
+        return key, raw.lower() == "true"
+    return key, raw
+
+
+def _fmt(metrics: dict[str, float], key: str) -> str:
+    v = metrics.get(key, float("nan"))
+    if key in ("MT", "ML", "FP", "FN", "IDSW", "IDs"):
+        return f"{v:.0f}"
+    return f"{v:.1f}"
+
+
+def table(
+    rows: Sequence[tuple[str, str, dict[str, dict[str, float]]]], names: Sequence[str]
+) -> str:
+    lines = []
+    for name in names:
+        lines += [
+            f"**{name}**",
+            "",
+            "| motion | features | " + " | ".join(COLUMNS) + " |",
+            "|---|---|" + "---:|" * len(COLUMNS),
+        ]
+        for motion, features, res in rows:
+            cells = " | ".join(_fmt(res[name], c) for c in COLUMNS)
+            lines.append(f"| {motion} | {features} | {cells} |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    from densepeds.pipeline import default_features
+
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument("--cache", type=Path, default=REPO / "out" / "cache")
+    ap.add_argument("--rows", default="ablation", help="'ablation' or MOTION:FEATURES,...")
+    ap.add_argument("--param", type=_param, action="append", default=[], help="KEY=VALUE override")
+    ap.add_argument("--kinds", default="segmented,bbox,masked_pool", help="feature kinds to cache")
+    ap.add_argument("--write", type=Path, help="also write the tables to this markdown file")
+    ap.add_argument("--quiet", "-q", action="store_true")
+    args = ap.parse_args(argv)
+    default_kind = default_features(has_images=True)
+    if args.rows == "ablation":
+        settings = list(ABLATION)
+    else:
+        settings = [tuple(s.split(":")) for s in args.rows.split(",")]  # type: ignore[misc]
+    settings = [(m, default_kind if f == "default" else f) for m, f in settings]
+    kinds = sorted({f for _, f in settings if f != "none"} | set(args.kinds.split(",")))
+    videos = [
+        (load_video(seq, frames, kinds, args.cache, {}, args.quiet), frames)
+        for seq, frames in VIDEOS
+    ]
+    params = dict(args.param)
+    results = []
+    with tempfile.TemporaryDirectory(prefix="densepeds-realvideo-") as tmp_name:
+        for motion, features in dict.fromkeys(settings):
+            t0 = time.perf_counter()
+            res = score(videos, motion, features, params, Path(tmp_name))
+            results.append((motion, features, res))
+            if not args.quiet:
+                brief = "; ".join(
+                    f"{n} HOTA {m['HOTA']:.1f} IDF1 {m['IDF1']:.1f} MOTA {m['MOTA']:.1f}"
+                    for n, m in res.items()
+                )
+                print(
+                    f"{motion}:{features} {brief} ({time.perf_counter() - t0:.1f} s)",
+                    file=sys.stderr,
+                )
+    text = table(results, [v.name for v, _ in videos])
+    print(text)
+    if args.write:
+        args.write.write_text(text + "\n", encoding="utf-8")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
