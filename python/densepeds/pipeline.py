@@ -48,7 +48,7 @@ DEFAULT_FEATURES = "segmented"
 DETECTORS = ("yoloseg", "maskrcnn")
 # Pipeline-level options (the rest of the keyword arguments go to the tracker), applied to the
 # detections of a CNN detector before tracking; a det.txt is tracked as it is.
-DETECTION_OPTIONS = ("min_score", "nms_iou", "nms_containment")
+DETECTION_OPTIONS = ("min_score", "nms_iou", "nms_containment", "nms_mask_overlap")
 # One preset for every video tracked from a CNN detector (see benchmarks/results/realvideo.md);
 # tracking from det.txt keeps the tracker's own defaults.
 CNN_DETECTION_DEFAULTS: dict[str, float] = {
@@ -117,14 +117,24 @@ def track_rows(frame_no: int, tracks: Tracks) -> list[tuple[float, ...]]:
 
 
 def suppress_duplicates(
-    dets: Detections, iou: float = 1.0, containment: float = 1.0
+    dets: Detections,
+    iou: float = 1.0,
+    containment: float = 1.0,
+    mask_overlap: float = 1.0,
+    mask_min_iou: float = 0.3,
 ) -> npt.NDArray[np.intp]:
-    """Indices (ascending) of the detections kept by greedy suppression, best score first, of
-    boxes overlapping a kept one by IoU > ``iou`` or covered by more than ``containment`` of
-    their own area (a person cut at a tile's edge inside the whole-frame box of the same
-    person). 1.0 for both keeps everything."""
+    """Indices (ascending) of the detections kept by greedy suppression, best score first.
+
+    A box is a duplicate of a kept one when their IoU > ``iou``, when more than ``containment``
+    of its area lies inside the kept box (a person cut at a tile's edge inside the whole-frame
+    box of the same person), or, with masks, when the boxes overlap by IoU > ``mask_min_iou``
+    and more than ``mask_overlap`` of the smaller mask lies on the kept one's mask: in a crowd
+    two people's boxes overlap a lot while their masks (occluder, occluded) barely do. 1.0
+    keeps everything a test would remove.
+    """
     n = len(dets)
-    if n < 2 or (iou >= 1.0 and containment >= 1.0):
+    use_masks = mask_overlap < 1.0 and dets.masks is not None and dets.mask_boxes is not None
+    if n < 2 or (iou >= 1.0 and containment >= 1.0 and not use_masks):
         return np.arange(n)
     b = dets.boxes.astype(np.float64)
     area = np.maximum(b[:, 2] - b[:, 0], 0) * np.maximum(b[:, 3] - b[:, 1], 0)
@@ -133,14 +143,33 @@ def suppress_duplicates(
     inter = np.clip(iw, 0, None) * np.clip(ih, 0, None)
     union = area[:, None] + area[None, :] - inter
     overlap = inter / np.maximum(union, 1e-9)
-    covered = inter / np.maximum(area[:, None], 1e-9)  # [i, j]: share of box i inside box j
+    inside = inter / np.maximum(area[None, :], 1e-9)  # [i, j]: share of box j inside box i
+    duplicate = (overlap > iou) | (inside > containment)  # [i, j]: i kept suppresses j
+    if use_masks:
+        for i, j in zip(*np.nonzero(np.triu(overlap > mask_min_iou, 1)), strict=True):
+            if not duplicate[i, j] and _mask_share(dets, int(i), int(j)) > mask_overlap:
+                duplicate[i, j] = duplicate[j, i] = True
     keep = np.zeros(n, bool)
     suppressed = np.zeros(n, bool)
     for i in np.argsort(-dets.scores, kind="stable"):
         if not suppressed[i]:
             keep[i] = True
-            suppressed |= (overlap[i] > iou) | (covered[:, i] > containment)
+            suppressed |= duplicate[i]
     return np.flatnonzero(keep)
+
+
+def _mask_share(dets: Detections, i: int, j: int) -> float:
+    """Share of the smaller of masks i and j that lies on the other (0 for empty masks)."""
+    assert dets.masks is not None and dets.mask_boxes is not None
+    bi, bj = dets.mask_boxes[i], dets.mask_boxes[j]
+    x0, y0 = max(bi[0], bj[0]), max(bi[1], bj[1])
+    x1, y1 = min(bi[2], bj[2]), min(bi[3], bj[3])
+    smaller = min(int(dets.masks[i].sum()), int(dets.masks[j].sum()))
+    if x1 <= x0 or y1 <= y0 or smaller == 0:
+        return 0.0
+    mi = dets.masks[i][y0 - bi[1] : y1 - bi[1], x0 - bi[0] : x1 - bi[0]]
+    mj = dets.masks[j][y0 - bj[1] : y1 - bj[1], x0 - bj[0] : x1 - bj[0]]
+    return float(np.count_nonzero(mi & mj)) / smaller
 
 
 def default_features(has_images: bool) -> str:
@@ -299,8 +328,14 @@ class Pipeline:
         min_score = opt.get("min_score")
         if min_score is not None:
             index = index[dets.scores >= min_score]
-        iou, containment = opt.get("nms_iou", 1.0), opt.get("nms_containment", 1.0)
-        return index[suppress_duplicates(dets.subset(index), iou, containment)]
+        return index[
+            suppress_duplicates(
+                dets.subset(index),
+                opt.get("nms_iou", 1.0),
+                opt.get("nms_containment", 1.0),
+                opt.get("nms_mask_overlap", 1.0),
+            )
+        ]
 
     def step(
         self,
