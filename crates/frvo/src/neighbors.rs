@@ -123,7 +123,8 @@ impl NeighborGrid {
     }
 }
 
-/// Keeps `out` sorted by distance and at most `max` long.
+/// Keeps `out` sorted by distance (ties in arrival order) and at most `max` long. An insertion
+/// step by hand: `out` is short, and `Vec::insert`'s memmove call cost more than the shift.
 fn insert_nearest(out: &mut Vec<(f64, usize)>, max: usize, item: (f64, usize)) {
     if out.len() == max {
         if item.0 >= out[max - 1].0 {
@@ -131,6 +132,11 @@ fn insert_nearest(out: &mut Vec<(f64, usize)>, max: usize, item: (f64, usize)) {
         }
         out.pop();
     }
-    let at = out.partition_point(|e| e.0 <= item.0);
-    out.insert(at, item);
+    out.push(item);
+    let mut k = out.len() - 1;
+    while k > 0 && out[k - 1].0 > item.0 {
+        out[k] = out[k - 1];
+        k -= 1;
+    }
+    out[k] = item;
 }
