@@ -7,7 +7,7 @@ Same models and settings as ``densepeds run``, done the plain way: the shipped i
 the 3x2 tiles, each tile its own batch-1 onnxruntime call on the model file as shipped (no
 rewrite, no float copy, no whole-frame view); a mask for every detection; every detection
 cropped and embedded by OSNet every frame (one batched call per frame); the tracker; the tracks
-file. onnxruntime ``intra_op_num_threads`` = ``--threads`` (2).
+file. onnxruntime with its default session options but ``intra_op_num_threads`` = ``--threads`` (2).
 
 Every setting is pinned here, so that a later change of the package's defaults does not move the
 reference. The box and mask decoding, merging of tiles, crops, tracker and output writer are the
@@ -29,7 +29,6 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # numpy's BLAS threads fight
 
 import numpy as np
 import onnxruntime as ort
-from densepeds.detect import onnxutil
 from densepeds.detect.yoloseg import YoloSegDetector
 from densepeds.modelfiles import find_model
 from densepeds.motio import write_tracks
@@ -57,6 +56,13 @@ class Timer:
             self.seconds[name] += time.perf_counter() - start
 
 
+def plain_session(path: Path, threads: int) -> ort.InferenceSession:
+    """onnxruntime's defaults but for the intra-op thread count (the reference's only setting)."""
+    opts = ort.SessionOptions()
+    opts.intra_op_num_threads = threads
+    return ort.InferenceSession(str(path), sess_options=opts, providers=["CPUExecutionProvider"])
+
+
 class ReferenceDetector:
     """3x2 tiles, a batch-1 call per tile on the shipped model, masks for every detection."""
 
@@ -65,7 +71,7 @@ class ReferenceDetector:
         # The package's decoder, used for letterboxing and decoding only; inference runs on a
         # session of the file as shipped (fixed batch 1), once per tile.
         self.decoder = YoloSegDetector(path, tiles=(3, 2), full_frame=False, threads=1)
-        self.session = onnxutil.make_session(path, threads)
+        self.session = plain_session(path, threads)
         self.input_name = self.session.get_inputs()[0].name
 
     def __call__(self, frame: np.ndarray, timer: Timer) -> Detections:
@@ -106,6 +112,9 @@ def main(argv: list[str] | None = None) -> int:
         ort.set_default_logger_severity(3)
         detector = ReferenceDetector(args.threads)
         reid = ReID(find_model(REID_MODEL), threads=args.threads, batch_size=64)
+        if reid.rewritten:
+            raise SystemExit("the reference expects the shipped OSNet (dynamic batch)")
+        reid.session = plain_session(reid.path, args.threads)
         tracker = Tracker(motion=args.motion)
         src = open_source(args.input)
     rows: list[tuple[float, ...]] = []

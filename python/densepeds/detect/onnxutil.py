@@ -50,6 +50,10 @@ def session_options(threads: int | None) -> ort.SessionOptions:
     opts.inter_op_num_threads = 1
     opts.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
     opts.log_severity_level = 3  # the int8 export triggers harmless deprecation warnings
+    # Idle worker threads sleep instead of spinning: on a CPU shared with decoding, the
+    # tracker or other processes, spinning burned ~40% more CPU time and was slower in wall
+    # time too (benchmarks/results/speed.md). Outputs are unchanged.
+    opts.add_session_config_entry("session.intra_op.allow_spinning", "0")
     return opts
 
 
