@@ -159,3 +159,86 @@ def test_real_tracker_on_the_scene(scene: Scene, tmp_path: Path) -> None:
         results[features] = evaluate([seq], tmp_path / f"{features}.txt").combined
     assert results["segmented"]["MOTA"] > 50
     assert results["segmented"]["IDF1"] > 40
+
+
+def _greedy_nms_reference(boxes: np.ndarray, scores: np.ndarray, thr: float) -> list[int]:
+    """Textbook greedy NMS, one pair at a time."""
+
+    def iou(a: np.ndarray, b: np.ndarray) -> float:
+        w = max(0.0, min(a[2], b[2]) - max(a[0], b[0]))
+        h = max(0.0, min(a[3], b[3]) - max(a[1], b[1]))
+        inter = w * h
+        union = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - inter
+        return inter / union
+
+    kept: list[int] = []
+    for i in sorted(range(len(boxes)), key=lambda k: (-scores[k], k)):
+        if all(iou(boxes[i], boxes[k]) <= thr for k in kept):
+            kept.append(i)
+    return sorted(kept)
+
+
+def test_suppress_duplicates_matches_greedy_nms_on_random_boxes() -> None:
+    from densepeds.pipeline import suppress_duplicates
+
+    rng = np.random.default_rng(3)
+    for _ in range(30):
+        n = int(rng.integers(0, 25))
+        xy = rng.uniform(0, 100, (n, 2))
+        wh = rng.uniform(5, 40, (n, 2))
+        boxes = np.c_[xy, xy + wh].astype(np.float32)
+        scores = rng.choice([0.3, 0.5, 0.9], n).astype(np.float32)  # ties: index order
+        dets = Detections(boxes, scores)
+        for thr in (0.3, 0.6):
+            got = suppress_duplicates(dets, iou=thr).tolist()
+            assert got == _greedy_nms_reference(boxes, scores, thr)
+        assert suppress_duplicates(dets).tolist() == list(range(n))  # defaults keep all
+
+
+def _masked(boxes: list[list[int]], scores: list[float], fills: list[slice]) -> Detections:
+    """Detections whose masks cover the given column slices of their (integer) boxes."""
+    masks = []
+    for b, cols in zip(boxes, fills, strict=True):
+        m = np.zeros((b[3] - b[1], b[2] - b[0]), bool)
+        m[:, cols] = True
+        masks.append(m)
+    return Detections(np.array(boxes, np.float32), scores, masks, np.array(boxes))
+
+
+def test_suppress_duplicates_by_containment_and_masks() -> None:
+    from densepeds.pipeline import suppress_duplicates
+
+    # A tile-cut half body (index 1) inside the whole-body box of the same person.
+    dets = Detections([[0, 0, 20, 60], [0, 0, 20, 28], [40, 0, 60, 60]], [0.95, 0.9, 0.5])
+    assert suppress_duplicates(dets, containment=0.8).tolist() == [0, 2]
+    # Only the box inside a better one goes: a better half body leaves the whole body be.
+    dets.scores[:] = [0.9, 0.95, 0.5]
+    assert suppress_duplicates(dets, containment=0.8).tolist() == [0, 1, 2]
+    # Boxes overlapping by IoU 0.6: two people (disjoint masks) or one (same mask).
+    boxes = [[0, 0, 40, 80], [10, 0, 50, 80]]
+    two = _masked(boxes, [0.9, 0.6], [slice(0, 15), slice(25, 40)])
+    one = _masked(boxes, [0.9, 0.6], [slice(10, 40), slice(0, 30)])
+    assert suppress_duplicates(two, mask_overlap=0.5).tolist() == [0, 1]
+    assert suppress_duplicates(one, mask_overlap=0.5).tolist() == [0]
+    assert suppress_duplicates(one, mask_overlap=0.5, mask_min_iou=0.7).tolist() == [0, 1]
+    assert suppress_duplicates(two, iou=0.5).tolist() == [0]  # boxes alone cannot tell
+
+
+def test_cnn_detections_are_filtered_and_det_index_refers_to_the_input() -> None:
+    tracker, embedder = RecordingTracker(), RecordingEmbedder()
+    dets = Detections(
+        [[0, 0, 10, 30], [1, 0, 11, 30], [40, 0, 50, 30], [60, 0, 70, 30]],
+        [0.9, 0.8, 0.05, 0.6],
+    )
+    emb = np.arange(16, dtype=np.float32).reshape(4, 4)
+    pipe = Pipeline(FixedDetector(), reid=embedder, tracker=tracker, min_score=0.1, nms_iou=0.5)
+    assert pipe.detection_options["min_score"] == 0.1
+    tracks = pipe.step(FRAME, dets, embeddings=emb)
+    boxes, scores, got_emb = tracker.calls[-1]
+    np.testing.assert_allclose(scores, [0.9, 0.6])  # the duplicate and the low score dropped
+    np.testing.assert_array_equal(got_emb, emb[[0, 3]])
+    assert tracks.det_index.tolist() == [0, 3]
+    # Detections from a det file (no detector) are tracked as given.
+    plain = Pipeline(None, reid=embedder, tracker=RecordingTracker())
+    assert plain.detection_options == {}
+    assert len(plain.step(None, dets).ids) == 4
