@@ -38,12 +38,31 @@ def peak_rss_mib() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # KiB on Linux
 
 
+def _option(text: str) -> tuple[str, object]:
+    key, _, raw = text.partition("=")
+    low = raw.lower()
+    if low in ("true", "false"):
+        return key, low == "true"
+    try:
+        return key, float(raw) if "." in raw else int(raw)
+    except ValueError:
+        return key, raw
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seq", default="MOT20-01-dev")
     ap.add_argument("--frames", default="1:400")
     ap.add_argument("--at", default="100,200,300,400", help="frame counts to report after")
+    ap.add_argument(
+        "--detector-option",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a detector default (e.g. dequantize=true)",
+    )
     args = ap.parse_args()
+    options = dict(_option(text) for text in args.detector_option)
     checkpoints = sorted({int(v) for v in args.at.split(",")})
 
     from densepeds.pipeline import Pipeline, track_rows
@@ -54,7 +73,7 @@ def main() -> int:
         raise SystemExit(f"{seq_dir}: missing (set DENSEPEDS_SHARED to the shared data folder)")
     src = SequenceSource(seq_dir)
     start = time.perf_counter()
-    pipe = Pipeline("yoloseg")
+    pipe = Pipeline("yoloseg", detector_options=options)
     pipe.detector()
     pipe.reid()
     print(f"models loaded: peak {peak_rss_mib():.0f} MiB, now {current_rss_mib():.0f} MiB")
@@ -82,7 +101,8 @@ def main() -> int:
         growth = 100 * (last[1] / first[1] - 1)
         print(
             f"\npeak RSS after {last[0]} frames is {growth:+.1f}% of the peak after {first[0]} "
-            f"({args.seq}, {pipe.times.fps:.2f} fps; {pipe.times.breakdown()})"
+            f"({args.seq}, detector options {options or 'default'}, {pipe.times.fps:.2f} fps; "
+            f"{pipe.times.breakdown()})"
         )
     return 0
 
