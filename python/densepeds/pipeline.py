@@ -48,7 +48,7 @@ DEFAULT_FEATURES = "segmented"
 DETECTORS = ("yoloseg", "maskrcnn")
 # Pipeline-level options (the rest of the keyword arguments go to the tracker), applied to the
 # detections of a CNN detector before tracking; a det.txt is tracked as it is.
-DETECTION_OPTIONS = ("min_score", "nms_iou", "nms_containment", "nms_mask_overlap")
+DETECTION_OPTIONS = ("min_score", "min_height", "nms_iou", "nms_containment", "nms_mask_overlap")
 # One preset for every video tracked from a CNN detector (see benchmarks/results/realvideo.md);
 # tracking from det.txt keeps the tracker's own defaults.
 CNN_DETECTION_DEFAULTS: dict[str, float] = {
@@ -327,7 +327,11 @@ class Pipeline:
         index = np.arange(len(dets))
         min_score = opt.get("min_score")
         if min_score is not None:
-            index = index[dets.scores >= min_score]
+            index = index[dets.scores[index] >= min_score]
+        min_height = opt.get("min_height")
+        if min_height is not None:
+            heights = dets.boxes[index, 3] - dets.boxes[index, 1]
+            index = index[heights >= min_height]
         return index[
             suppress_duplicates(
                 dets.subset(index),
