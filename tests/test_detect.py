@@ -317,7 +317,8 @@ def test_yoloseg_decoding_geometry(tmp_path: Path) -> None:
 
 
 def test_yoloseg_tiles_map_back_to_the_frame(tmp_path: Path) -> None:
-    det = make_detector("yoloseg", tiny_yoloseg(tmp_path / "y.onnx"), tiles=(2, 1), threads=1)
+    model = tiny_yoloseg(tmp_path / "y.onnx")
+    det = make_detector("yoloseg", model, tiles=(2, 1), threads=1, full_frame=True)
     assert isinstance(det, YoloSegDetector) and det.rewritten  # batch 1 -> dynamic
     dets = det(np.zeros((64, 128, 3), np.uint8))
     # Every view reports the same relative box: in each tile and in the whole frame; each maps
@@ -329,6 +330,11 @@ def test_yoloseg_tiles_map_back_to_the_frame(tmp_path: Path) -> None:
     got = sorted(dets.boxes.tolist())
     assert len(got) == 3
     np.testing.assert_allclose(got, sorted(expected), atol=0.05)
+    # By default a tiled frame is not also seen whole: only the two tiles' boxes.
+    tiles_only = make_detector("yoloseg", model, tiles=(2, 1), threads=1)
+    assert isinstance(tiles_only, YoloSegDetector) and len(tiles_only.views(128, 64)) == 2
+    got = sorted(tiles_only(np.zeros((64, 128, 3), np.uint8)).boxes.tolist())
+    np.testing.assert_allclose(got, sorted(expected[:2]), atol=0.05)
 
 
 def test_dequantized_copy_folds_weights_and_drops_activation_rounding() -> None:

@@ -266,7 +266,7 @@ class ReusePolicy:
 
     min_iou: float = 0.6
     max_other_iou: float = 0.3
-    max_thumb_diff: float = 12.0
+    max_thumb_diff: float = 6.0
     max_reuses: int = 4
 
     def __post_init__(self) -> None:
