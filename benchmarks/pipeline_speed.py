@@ -10,7 +10,9 @@ first: ours (`python -m densepeds run SEQ --frames A:B`, the package defaults) a
 ``taskset`` with that many CPUs when the machine has more; else it is the machine's count).
 Prints each run's wall and CPU seconds and per-stage ms/frame, then the medians and the ratio
 reference / ours. ``--profile`` adds an in-process pass of our pipeline that splits detection
-into preprocessing, inference, box decoding and masks. Figures only: nothing is asserted.
+into preprocessing, inference, box decoding and masks. ``--reuse`` adds a third process:
+`densepeds run` with re-ID reuse switched on (``ReID(reuse=True)``, which the pipeline does not
+do by default; see densepeds.reid.ReusePolicy). Figures only: nothing is asserted.
 """
 
 from __future__ import annotations
@@ -31,6 +33,22 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parent.parent
 SHARED = Path(os.environ.get("DENSEPEDS_SHARED", REPO.parent / "shared"))
 STAGE_RE = re.compile(r"([a-z]+) ([0-9.]+)")
+REUSE_CHILD = "--child-run-with-reuse"
+
+
+def _run_with_reuse(argv: list[str]) -> int:
+    """`densepeds run ARGV` with every ReID built with reuse on (the pipeline's opt-in)."""
+    from densepeds import reid
+    from densepeds.cli import main as cli_main
+
+    plain_init = reid.ReID.__init__
+
+    def init(self: reid.ReID, *args: object, **kwargs: object) -> None:
+        kwargs.setdefault("reuse", True)
+        plain_init(self, *args, **kwargs)  # type: ignore[arg-type]
+
+    reid.ReID.__init__ = init  # type: ignore[method-assign]
+    return cli_main(["run", *argv])
 
 
 def _cpu_prefix(threads: int) -> list[str]:
@@ -108,13 +126,15 @@ def main() -> int:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--profile", action="store_true")
+    ap.add_argument("--reuse", action="store_true", help="also time ours with re-ID reuse on")
     args = ap.parse_args()
     seq_dir = SHARED / "data" / args.seq
     if not seq_dir.is_dir():
         raise SystemExit(f"{seq_dir}: missing (set DENSEPEDS_SHARED to the shared data folder)")
     pin = _cpu_prefix(args.threads)
     features = _default_features()
-    runs: dict[str, list[Run]] = {"reference": [], "ours": []}
+    names = ["reference", "ours", *(["ours+reuse"] if args.reuse else [])]
+    runs: dict[str, list[Run]] = {name: [] for name in names}
     with tempfile.TemporaryDirectory(prefix="densepeds-speed-") as tmp:
         cmds = {
             "ours": [
@@ -145,9 +165,17 @@ def main() -> int:
                 features,
             ],
         }
-        markers = {"ours": "fps (", "reference": "reference:"}
+        cmds["ours+reuse"] = [
+            *pin,
+            sys.executable,
+            __file__,
+            REUSE_CHILD,
+            *cmds["ours"][cmds["ours"].index("run") + 1 :],
+        ]
+        cmds["ours+reuse"][cmds["ours+reuse"].index("--out") + 1] = f"{tmp}/reuse.txt"
+        markers = {"ours": "fps (", "ours+reuse": "fps (", "reference": "reference:"}
         for rep in range(args.repeats):
-            order = ("reference", "ours") if rep % 2 == 0 else ("ours", "reference")
+            order = names if rep % 2 == 0 else names[::-1]
             for name in order:
                 r = run_once(cmds[name], markers[name])
                 runs[name].append(r)
@@ -171,9 +199,11 @@ def main() -> int:
         stage_med = {k: statistics.median(r.stages[k] for r in rs) for k in rs[0].stages}
         cells = ", ".join(f"{k} {v:.1f}" for k, v in stage_med.items())
         print(f"| {name} | {med[name]['wall']:.1f} | {med[name]['cpu']:.1f} | {cells} |")
-    ratio = med["reference"]["wall"] / med["ours"]["wall"]
-    cpu_ratio = med["reference"]["cpu"] / med["ours"]["cpu"]
-    print(f"\nspeed-up, reference / ours: {ratio:.2f}x wall, {cpu_ratio:.2f}x CPU time")
+    print()
+    for name in names[1:]:
+        ratio = med["reference"]["wall"] / med[name]["wall"]
+        cpu_ratio = med["reference"]["cpu"] / med[name]["cpu"]
+        print(f"speed-up, reference / {name}: {ratio:.2f}x wall, {cpu_ratio:.2f}x CPU time")
     print(
         f"{args.seq} frames {args.frames}; features {features}; "
         f"onnxruntime threads {args.threads}; "
@@ -189,4 +219,6 @@ def main() -> int:
 
 
 if __name__ == "__main__":
+    if len(sys.argv) > 1 and sys.argv[1] == REUSE_CHILD:
+        sys.exit(_run_with_reuse(sys.argv[2:]))
     sys.exit(main())
