@@ -6,6 +6,9 @@
 
 use crate::geometry::{cross, lowest_vertex, Polygon, MAX_VERTICES, V2};
 
+/// Sine of the angle below which two edges are merged as parallel.
+pub const PARALLEL_SIN: f64 = 1e-9;
+
 /// Appends a counter-clockwise polygon prepared for [`merge_prepared`]: its `n` vertices
 /// starting at the lowest one (where edge angles begin at 0) followed by that vertex again
 /// (`n + 1` points), and its `n` edge vectors.
@@ -24,7 +27,7 @@ pub fn prepare(poly: &[V2], pts: &mut Vec<V2>, edges: &mut Vec<V2>) {
 
 /// `a ⊕ b` for polygons prepared by [`prepare`] (`a`: `n + 1` points and `n` edges, likewise
 /// `b`), written to `out` (cleared first). At each step the edge that turns least is taken
-/// (both when parallel or undefined), so the result is counter-clockwise, starts at the lowest
+/// (both when parallel to within [`PARALLEL_SIN`], or undefined), so the result is counter-clockwise, starts at the lowest
 /// vertex and has at most `n + m` vertices (truncated to [`MAX_VERTICES`]).
 #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN must advance, see below
 #[inline]
@@ -46,9 +49,15 @@ pub fn merge_prepared(a: &[V2], ea: &[V2], b: &[V2], eb: &[V2], out: &mut Polygo
             buf[k] = a[i] + b[j];
             k += 1;
             let turn = cross(ea[i], eb[j]);
+            // Edges parallel to within PARALLEL_SIN count as parallel and are taken together:
+            // rounding must not leave two collinear edges, whose facing tests could then
+            // disagree when the origin lies on their common line (touching shapes), which
+            // turns the velocity obstacle's cone inside out.
+            let tie = turn * turn
+                <= PARALLEL_SIN * PARALLEL_SIN * ea[i].norm_squared() * eb[j].norm_squared();
             // Written with negations so that a NaN advances both walks (no endless loop).
-            i += usize::from(!(turn < 0.0));
-            j += usize::from(!(turn > 0.0));
+            i += usize::from(tie || !(turn < 0.0));
+            j += usize::from(tie || !(turn > 0.0));
         }
         // One walk is done (back at its first vertex); finish the other.
         for (slot, &q) in buf[k..].iter_mut().zip(&a[i..n]) {

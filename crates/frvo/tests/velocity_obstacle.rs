@@ -78,4 +78,57 @@ proptest! {
         let out_hit = (1..=steps).any(|k| poly.contains(out * (tau * k as f64 / steps as f64), 0.0));
         prop_assert!(!out_hit || !inside, "boundary point {:?} not on the boundary", edge);
     }
+
+    /// The reciprocal half-plane is only safe if its line supports the whole obstacle: every
+    /// point of `VO = { s x : x in P, s >= 1/tau }` (or `P / dt` when overlapping) lies on the
+    /// inner side of the line through `w + u` with normal `n`. Checked on the brute-force
+    /// pairwise vertex sums, for shapes with the same heading and size (their polygons have
+    /// parallel edges) placed at or near contact, where the tangent search is ill-conditioned.
+    #[test]
+    fn half_plane_supports_obstacle_at_contact(
+        (l, wid, h) in (5.0f64..40.0, 5.0f64..60.0, 0.0f64..std::f64::consts::TAU),
+        same_shape in any::<bool>(),
+        (lb, wb, hb) in (5.0f64..40.0, 5.0f64..60.0, 0.0f64..std::f64::consts::TAU),
+        sides in 3usize..=16,
+        (edge, along) in (0usize..64, 0.0f64..1.0),
+        gap in prop::sample::select(vec![-1e-3, -1e-9, 0.0, 0.0, 0.0, 1e-12, 1e-9, 1e-3, 0.5]),
+        w in (-8.0f64..8.0, -8.0f64..8.0),
+        tau in 1.0f64..20.0,
+    ) {
+        let unit = |t: f64| V2::new(t.cos(), t.sin());
+        let a = Ellipse::new(l, wid, unit(h)).polygon(sides);
+        let b = if same_shape {
+            a
+        } else {
+            Ellipse::new(lb, wb, unit(hb)).polygon(sides)
+        };
+        let sum = minkowski_sum(&b, &a.negated());
+        // Touching: the origin on a point of an edge of P = p + sum, then moved out by `gap`.
+        let pts = sum.points();
+        let k = edge % pts.len();
+        let (q0, q1) = (pts[k], pts[(k + 1) % pts.len()]);
+        let outward = V2::new(q1.y - q0.y, q0.x - q1.x).normalize();
+        let p = -(q0 + (q1 - q0) * along + outward * gap);
+        let w = V2::new(w.0, w.1);
+        let dt = 1.0;
+        let av = avoidance(p, &sum, w, tau, dt);
+        prop_assert!(av.normal.norm() > 0.5, "no normal: {:?}", av);
+        let c = w + av.u;
+        let tol = 1e-7 * (1.0 + p.norm());
+        // Whether apart or overlapping (at contact either reading is fair), the obstacle
+        // contains P / tau and P / dt; clearly apart, it also holds the rays through P.
+        for qb in b.points() {
+            for qa in a.points() {
+                let x = p + qb - qa;
+                for s in [1.0 / tau, 1.0 / dt] {
+                    prop_assert!((x * s - c).dot(&av.normal) <= tol,
+                        "obstacle point {:?} beyond the line (gap {}, {:?})", x * s, gap, av);
+                }
+                if gap > 1e-6 {
+                    prop_assert!(x.dot(&av.normal) <= tol,
+                        "cone direction {:?} crosses the line (gap {}, {:?})", x, gap, av);
+                }
+            }
+        }
+    }
 }
