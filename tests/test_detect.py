@@ -314,6 +314,9 @@ def test_yoloseg_decoding_geometry(tmp_path: Path) -> None:
     mask = dets.masks[0]
     assert mask.shape == (32, 32)
     assert mask[:, : 64 - 48].all() and not mask[:, 64 - 48 :].any()
+    # Benchmarks read where the time went.
+    assert set(det.stage_seconds) == {"preprocess", "inference", "boxes", "masks"}
+    assert all(v >= 0 for v in det.stage_seconds.values())
 
 
 def test_yoloseg_tiles_map_back_to_the_frame(tmp_path: Path) -> None:
