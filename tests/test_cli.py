@@ -215,3 +215,14 @@ def test_ablate_on_the_scene(capsys: pytest.CaptureFixture[str]) -> None:
     assert rows[0].startswith("| Motion | Features |") and "MOTA(%)" in rows[0]
     combos = {tuple(r.strip("| ").split(" | ")[:2]) for r in rows[1:]}
     assert combos == {("cv", "segmented"), ("cv", "none"), ("frvo", "segmented"), ("frvo", "none")}
+
+
+def test_run_offers_every_masking(capsys: pytest.CaptureFixture[str]) -> None:
+    from densepeds.cli import build_parser
+    from densepeds.pipeline import FEATURES
+
+    for kind in FEATURES:
+        assert build_parser().parse_args(["run", "x.mp4", "--features", kind]).features == kind
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(["run", "x.mp4", "--features", "white"])
+    capsys.readouterr()

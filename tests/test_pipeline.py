@@ -242,3 +242,28 @@ def test_cnn_detections_are_filtered_and_det_index_refers_to_the_input() -> None
     plain = Pipeline(None, reid=embedder, tracker=RecordingTracker())
     assert plain.detection_options == {}
     assert len(plain.step(None, dets).ids) == 4
+
+
+def test_cnn_preset_applies_only_to_cnn_detections() -> None:
+    pytest.importorskip("densepeds.tracking", reason="needs densepeds.tracking (engineer assoc)")
+    from densepeds.pipeline import (
+        CNN_DETECTION_DEFAULTS,
+        CNN_TRACKER_DEFAULTS,
+        DEFAULT_FEATURES,
+        FEATURES,
+        default_features,
+    )
+    from densepeds.tracking import Tracker
+
+    cnn = Pipeline("yoloseg")  # the model is loaded on first use only
+    assert cnn.detection_options == CNN_DETECTION_DEFAULTS
+    for key, value in CNN_TRACKER_DEFAULTS.items():
+        assert cnn.tracker.params[key] == value, key
+    # The caller's values win over the preset.
+    mine = Pipeline("yoloseg", min_score=0.5, n_init=4)
+    assert mine.detection_options["min_score"] == 0.5 and mine.tracker.params["n_init"] == 4
+    # A det file keeps the tracker's own defaults and every detection.
+    plain = Pipeline(None)
+    assert plain.detection_options == {} and plain.tracker.params == Tracker().params
+    assert DEFAULT_FEATURES in FEATURES and default_features(True) == DEFAULT_FEATURES
+    assert default_features(False) == "none"

@@ -44,19 +44,53 @@ MOTIONS = ("frvo", "rvo", "sf", "cv")
 # segmented: the method's white fill outside the mask; bbox: the plain crop; masked_*: other
 # maskings (densepeds.segment); none: motion only.
 FEATURES = ("segmented", "bbox", "none", "masked_pool", "masked_mean", "masked_blur")
-DEFAULT_FEATURES = "segmented"
+# Mask-weighted pooling of OSNet's last feature map: beat the method's white fill (segmented)
+# and plain boxes on both real videos (benchmarks/results/realvideo.md).
+DEFAULT_FEATURES = "masked_pool"
 DETECTORS = ("yoloseg", "maskrcnn")
 # Pipeline-level options (the rest of the keyword arguments go to the tracker), applied to the
 # detections of a CNN detector before tracking; a det.txt is tracked as it is.
 DETECTION_OPTIONS = ("min_score", "min_height", "nms_iou", "nms_containment", "nms_mask_overlap")
-# One preset for every video tracked from a CNN detector (see benchmarks/results/realvideo.md);
-# tracking from det.txt keeps the tracker's own defaults.
+# One preset for every video tracked from a CNN detector (the shared tiled YOLOv8n-seg + OSNet),
+# chosen on MOT20-01-dev and PETS09-S2L1-dev together (benchmarks/results/realvideo.md); never
+# per video. Tracking from a det.txt keeps the tracker's own defaults.
 CNN_DETECTION_DEFAULTS: dict[str, float] = {
-    "min_score": 0.15,  # the detector's own floor: low scores extend tracks, never start them
-    "nms_iou": 1.0,  # 1.0: no extra suppression
-    "nms_containment": 1.0,
+    # The detector's own floor. Low scores only extend tracks (second pass), never start them.
+    "min_score": 0.15,
+    # Shorter boxes are mostly static clutter (signs, bags): no person that small was in the
+    # ground truth of either video, and OSNet cannot tell such crops apart anyway.
+    "min_height": 24,
+    # Tile duplicates: the detector's cross-tile NMS keeps box overlaps up to IoU 0.6, and box
+    # IoU alone cannot separate a duplicate from two people in a crowd (occluder, occluded):
+    # suppress when the masks coincide instead (box IoU > 0.3 and > 60% of the smaller mask on
+    # the other), plus clear box duplicates (IoU > 0.7) and tile-cut parts (90% inside).
+    "nms_iou": 0.7,
+    "nms_containment": 0.9,
+    "nms_mask_overlap": 0.6,
 }
-CNN_TRACKER_DEFAULTS: dict[str, Any] = {}
+CNN_TRACKER_DEFAULTS: dict[str, Any] = {
+    # Track birth at score 0.5: the int8 segmenter scores the people of a dense crowd low
+    # (median 0.51 on MOT20-01), so the 0.6-0.7 of other trackers starts too few tracks, while
+    # below 0.5 clutter starts tracks (PETS); detections in [0.15, 0.25) extend tracks by IoU.
+    "new_track_threshold": 0.5,
+    "det_threshold": 0.25,
+    "second_pass": True,
+    "low_threshold": 0.15,
+    "low_iou_threshold": 0.5,
+    "low_max_age": 60,
+    "n_init": 2,
+    "max_age": 60,
+    # Appearance (masked_pool OSNet features) decides first, within one box height.
+    "appearance_threshold": 0.4,
+    "gallery_size": 100,
+    "gate_radius": 1.0,
+    "iou_threshold": 0.3,
+    "recovery": True,
+    "recovery_iou_threshold": 0.3,
+    "size_smoothing": 0.5,
+    "velocity_smoothing": 0.5,
+    "output_lost": 2,
+}
 STAGES = ("decode", "detection", "reid", "tracking", "output")
 Image = npt.NDArray[np.uint8]
 
