@@ -27,8 +27,10 @@ pub fn prepare(poly: &[V2], pts: &mut Vec<V2>, edges: &mut Vec<V2>) {
 
 /// `a ⊕ b` for polygons prepared by [`prepare`] (`a`: `n + 1` points and `n` edges, likewise
 /// `b`), written to `out` (cleared first). At each step the edge that turns least is taken
-/// (both when parallel to within [`PARALLEL_SIN`], or undefined), so the result is counter-clockwise, starts at the lowest
-/// vertex and has at most `n + m` vertices (truncated to [`MAX_VERTICES`]).
+/// (both when parallel to within [`PARALLEL_SIN`], or undefined), so the result is
+/// counter-clockwise, never holds an edge of `a` and a near-parallel one of `b` side by side,
+/// starts at the lowest vertex and has at most `n + m` vertices (truncated to
+/// [`MAX_VERTICES`]).
 #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN must advance, see below
 #[inline]
 pub fn merge_prepared(a: &[V2], ea: &[V2], b: &[V2], eb: &[V2], out: &mut Polygon) {
