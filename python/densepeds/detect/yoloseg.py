@@ -72,12 +72,13 @@ def check_frame(frame: npt.NDArray[np.uint8]) -> None:
 class YoloSegDetector:
     """Person detector and segmenter; call it on a BGR frame to get Detections with masks.
 
-    Defaults (benchmarks/results/speed.md has the figures): ``dequantize=True`` runs a float
-    copy of a QDQ int8 export (made in memory at load time; 2.2-2.5x faster, and with the
-    package's tracker it scored higher HOTA/IDF1 on both real videos than the int8 original);
-    ``full_frame=False`` leaves out the whole-frame view when the frame is tiled (it cost a
-    seventh inference and added mostly low-score duplicates of tiled people, which lowered
-    tracking accuracy). A frame too small for tiles is always seen whole.
+    ``full_frame=False`` (default) leaves out the whole-frame view when the frame is tiled: it
+    cost a seventh inference and added mostly low-score duplicates of tiled people (tracking
+    accuracy unchanged without it on MOT20-01-dev). ``dequantize=True`` runs a float copy of a
+    QDQ int8 export (made in memory at load time), 2.5-3x faster here; it is not the default
+    because its detections tracked worse on MOT20-01-dev (and better on PETS09) with the
+    tracker preset of the time: benchmarks/results/speed.md has the figures. A frame too small
+    for tiles is always seen whole.
     """
 
     def __init__(
@@ -92,7 +93,7 @@ class YoloSegDetector:
         with_masks: bool = True,
         threads: int | None = None,
         person_class: int = 0,
-        dequantize: bool = True,
+        dequantize: bool = False,
     ) -> None:
         if not 0.0 <= score_threshold <= 1.0:
             raise ParameterError(f"score_threshold must be in [0, 1], got {score_threshold}")
