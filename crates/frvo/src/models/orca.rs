@@ -42,6 +42,14 @@ pub struct Orca {
     nbr: Vec<u32>,
     /// Per neighbour slot (FRVO): the avoidance when the pair was apart, for the reverse pair.
     avoid: Vec<Option<Avoidance>>,
+    /// The neighbour lists transposed to earlier agents: agent `i`'s entries
+    /// `rev[rev_start[i]..rev_start[i + 1]]` are `(j, t)` with `j < i` and `nbr[t] == i`, so the
+    /// reverse pair is found without searching `j`'s list.
+    rev_start: Vec<u32>,
+    rev: Vec<(u32, u32)>,
+    /// While agent `i` is processed: `slot_in[j]` is the slot of `i` in `j`'s list (from `rev`),
+    /// else `u32::MAX`.
+    slot_in: Vec<u32>,
     feasible: Vec<bool>,
     // Per-agent scratch, reused across agents and steps.
     polygon: Vec<V2>,
@@ -71,6 +79,9 @@ impl Orca {
             nbr_start: Vec::new(),
             nbr: Vec::new(),
             avoid: Vec::new(),
+            rev_start: Vec::new(),
+            rev: Vec::new(),
+            slot_in: Vec::new(),
             feasible: Vec::new(),
             polygon: Vec::new(),
             negated: Vec::new(),
@@ -114,13 +125,43 @@ impl Orca {
         }
     }
 
-    /// The slot of `i` in `j`'s neighbour list, if there.
-    fn reverse_slot(&self, j: usize, i: usize) -> Option<usize> {
-        let start = self.nbr_start[j] as usize;
-        let list = &self.nbr[start..self.nbr_start[j + 1] as usize];
-        list.iter()
-            .position(|&k| k as usize == i)
-            .map(|t| start + t)
+    /// Transposes the neighbour lists onto later agents (see `rev`): O(pairs), where searching
+    /// `j`'s list for every pair cost O(pairs x neighbours).
+    fn transpose_neighbors(&mut self) {
+        let n = self.positions.len();
+        self.rev_start.clear();
+        self.rev_start.resize(n + 1, 0);
+        for j in 0..n {
+            for &i in &self.nbr[self.nbr_start[j] as usize..self.nbr_start[j + 1] as usize] {
+                if (j as u32) < i {
+                    self.rev_start[i as usize + 1] += 1;
+                }
+            }
+        }
+        for i in 0..n {
+            self.rev_start[i + 1] += self.rev_start[i];
+        }
+        self.rev.clear();
+        self.rev.resize(self.rev_start[n] as usize, (0, 0));
+        let mut fill = self.rev_start[..n].to_vec();
+        for j in 0..n {
+            for t in self.nbr_start[j]..self.nbr_start[j + 1] {
+                let i = self.nbr[t as usize] as usize;
+                if j < i {
+                    self.rev[fill[i] as usize] = (j as u32, t);
+                    fill[i] += 1;
+                }
+            }
+        }
+        self.slot_in.clear();
+        self.slot_in.resize(n, u32::MAX);
+    }
+
+    /// Marks (or, with `u32::MAX`, clears) the slots of `i` in earlier agents' lists.
+    fn mark_incoming(&mut self, i: usize, clear: bool) {
+        for &(j, t) in &self.rev[self.rev_start[i] as usize..self.rev_start[i + 1] as usize] {
+            self.slot_in[j as usize] = if clear { u32::MAX } else { t };
+        }
     }
 
     /// Builds every agent's polygon once per step (no trigonometry: the unit polygon is cached)
@@ -211,6 +252,9 @@ impl MotionModel for Orca {
         self.grid
             .build(&self.positions, &self.valid, p.neighbor_radius);
         self.find_neighbors();
+        if self.footprint == Footprint::Ellipse {
+            self.transpose_neighbors();
+        }
         self.feasible.clear();
         self.avoid.clear();
 
@@ -225,6 +269,10 @@ impl MotionModel for Orca {
                 continue;
             }
             self.lines.clear();
+            let ellipse = self.footprint == Footprint::Ellipse;
+            if ellipse {
+                self.mark_incoming(i, false);
+            }
             for slot in slots {
                 let j = self.nbr[slot] as usize;
                 let b = &agents[j];
@@ -238,10 +286,12 @@ impl MotionModel for Orca {
                     Footprint::Ellipse => {
                         // Agent j, if already done and i among its neighbours, computed the
                         // reverse pair: apart, that is exactly the negation.
-                        let reverse = (j < i)
-                            .then(|| self.reverse_slot(j, i))
-                            .flatten()
-                            .and_then(|t| self.avoid[t]);
+                        let t = self.slot_in[j];
+                        let reverse = if t != u32::MAX {
+                            self.avoid[t as usize]
+                        } else {
+                            None
+                        };
                         let (avoid, apart) = match reverse {
                             Some(r) => (
                                 Avoidance {
@@ -278,6 +328,9 @@ impl MotionModel for Orca {
                 if is_finite(line.point) && line.dir.norm_squared() > 0.5 {
                     self.lines.push(line);
                 }
+            }
+            if ellipse {
+                self.mark_incoming(i, true);
             }
             let sol = lp::solve(&self.lines, p.max_speed, pref, &mut self.scratch);
             let ok = is_finite(sol.velocity);
