@@ -5,6 +5,6 @@ cd "$(dirname "$0")/.."
 [ -d .venv ] && . .venv/bin/activate
 cargo fmt --all --check
 cargo clippy --workspace --all-targets --release -- -D warnings
-ruff check python tests benchmarks models
-ruff format --check python tests benchmarks models
+ruff check python tests benchmarks models/*.py
+ruff format --check python tests benchmarks models/*.py
 mypy

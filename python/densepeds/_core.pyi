@@ -34,7 +34,6 @@ def step_crowd(
     densepeds.errors.ParameterError (a ValueError) for bad parameters. Releases the GIL.
     """
 
-
 # --- tracker (assoc) ----------------------------------------------------------------------------
 
 FloatArray = npt.NDArray[np.float32] | npt.NDArray[np.float64]
