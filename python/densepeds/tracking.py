@@ -26,7 +26,6 @@ new_track_threshold         0.3      smallest score that starts a track (low-sco
 second_pass                 True     ByteTrack-style pass on [low_threshold, det_threshold)
 low_threshold               0.05     lowest score used by the second pass
 low_iou_threshold           0.5      smallest IoU for a second-pass match
-low_max_age                 60       the second pass reaches tracks lost for up to this many frames
 low_max_age                 60       tracks unmatched up to this many frames join the second
                                      pass (0: only those matched last frame, as ByteTrack)
 recovery                    True     OC-SORT-style re-match of lost tracks by their last box
