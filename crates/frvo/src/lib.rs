@@ -15,6 +15,7 @@ pub mod minkowski;
 pub mod model;
 pub mod models;
 pub mod neighbors;
+mod pair;
 pub mod velocity_obstacle;
 
 pub use agent::Agent;

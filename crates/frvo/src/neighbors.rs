@@ -1,6 +1,6 @@
-//! Neighbour search on a uniform grid: cells at least as wide as the search radius, so only the
-//! 3 x 3 block around an agent's cell can hold its neighbours. Building is O(N); a query costs
-//! the agents in those cells.
+//! Neighbour search on a uniform grid of cells at least half as wide as the search radius: a
+//! query reads, row by row, the run of cells that the disc reaches (one contiguous slice of
+//! the agents per row, about twice the disc's area). Building is O(N).
 
 use crate::geometry::V2;
 
@@ -42,9 +42,10 @@ impl NeighborGrid {
         let extent = hi - lo;
         let per_axis =
             ((positions.len() as f64).sqrt().ceil() as usize).clamp(1, MAX_CELLS_PER_AXIS);
-        // Cells no narrower than the radius, and not so many that the grid outgrows the crowd.
+        // Cells no narrower than half the radius, and not so many that the grid outgrows the
+        // crowd.
         let floor = extent.x.max(extent.y) / per_axis as f64;
-        self.cell = self.radius.max(floor).max(1e-9);
+        self.cell = (0.5 * self.radius).max(floor).max(1e-9);
         if !self.cell.is_finite() {
             self.cell = f64::MAX;
         }
@@ -97,7 +98,7 @@ impl NeighborGrid {
     }
 
     /// Up to `max` agents other than `me` strictly within the radius of `positions[me]`, nearest
-    /// first, as (squared distance, index) in `out`.
+    /// first (equal distances by index), as (squared distance, index) in `out`.
     pub fn query(&self, positions: &[V2], me: usize, max: usize, out: &mut Vec<(f64, usize)>) {
         out.clear();
         if self.nx == 0 || max == 0 || self.radius <= 0.0 {
@@ -108,35 +109,130 @@ impl NeighborGrid {
             return;
         }
         let r2 = self.radius * self.radius;
-        let (cx, cy) = self.cell_xy(p);
-        for iy in cy.saturating_sub(1)..(cy + 2).min(self.ny) {
-            for ix in cx.saturating_sub(1)..(cx + 2).min(self.nx) {
-                let c = iy * self.nx + ix;
-                for &(q, j) in &self.items[self.starts[c] as usize..self.starts[c + 1] as usize] {
-                    let d2 = (q - p).norm_squared();
-                    if d2 < r2 && j as usize != me {
-                        insert_nearest(out, max, (d2, j as usize));
-                    }
-                }
+        let local = (p - self.min) / self.cell;
+        let reach = self.radius / self.cell;
+        let cells = |lo: f64, hi: f64, n: usize| {
+            let first = lo.floor().max(0.0) as usize;
+            let last = (hi.floor().max(0.0) as usize).min(n - 1);
+            first..last + 1
+        };
+        for iy in cells(local.y - reach, local.y + reach, self.ny) {
+            // The disc's half-width (in cells) at the row's nearest edge to p: the cells of the
+            // row within it are contiguous in `items`, so they are read as one slice.
+            let gap = axis_gap(local.y, iy);
+            let half = reach * reach - gap * gap;
+            if half.is_nan() || half <= 0.0 {
+                continue;
             }
+            let half = half.sqrt();
+            let xs = cells(local.x - half, local.x + half, self.nx);
+            if xs.is_empty() {
+                continue;
+            }
+            let row = iy * self.nx;
+            let slice = &self.items
+                [self.starts[row + xs.start] as usize..self.starts[row + xs.end] as usize];
+            // All are written, then compacted to those strictly within the radius: no branch
+            // to mispredict on about half of them.
+            let start = out.len();
+            out.extend(
+                slice
+                    .iter()
+                    .map(|&(q, j)| ((q - p).norm_squared(), j as usize)),
+            );
+            let mut len = start;
+            for idx in start..out.len() {
+                let item = out[idx];
+                out[len] = item;
+                len += usize::from(item.0 < r2 && item.1 != me);
+            }
+            out.truncate(len);
         }
+        let by_distance =
+            |a: &(f64, usize), b: &(f64, usize)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+        if out.len() > max && max <= SMALL_MAX {
+            // A few nearest of many: one insertion pass into the front of `out` (each
+            // candidate is read before the kept prefix can reach its slot).
+            let mut kept = 0;
+            for idx in 0..out.len() {
+                let item = out[idx];
+                if kept == max {
+                    if by_distance(&item, &out[max - 1]).is_ge() {
+                        continue;
+                    }
+                    kept -= 1;
+                }
+                let mut pos = kept;
+                while pos > 0 && by_distance(&item, &out[pos - 1]).is_lt() {
+                    out[pos] = out[pos - 1];
+                    pos -= 1;
+                }
+                out[pos] = item;
+                kept += 1;
+            }
+            out.truncate(kept);
+            return;
+        }
+        if out.len() > max {
+            out.select_nth_unstable_by(max - 1, by_distance);
+            out.truncate(max);
+        }
+        out.sort_unstable_by(by_distance);
     }
 }
 
-/// Keeps `out` sorted by distance (ties in arrival order) and at most `max` long. An insertion
-/// step by hand: `out` is short, and `Vec::insert`'s memmove call cost more than the shift.
-fn insert_nearest(out: &mut Vec<(f64, usize)>, max: usize, item: (f64, usize)) {
-    if out.len() == max {
-        if item.0 >= out[max - 1].0 {
-            return;
+/// Up to this many nearest are picked by insertion, more by selection then sorting.
+const SMALL_MAX: usize = 16;
+
+/// Distance (in cells) from coordinate `x` (in cells) to the nearest point of cell `i`.
+#[inline]
+fn axis_gap(x: f64, i: usize) -> f64 {
+    let lo = i as f64;
+    if x < lo {
+        lo - x
+    } else if x > lo + 1.0 {
+        x - lo - 1.0
+    } else {
+        0.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 500, failure_persistence: None, ..ProptestConfig::default() })]
+
+        /// The grid's answer is the brute-force one: within the radius, nearest first, ties by
+        /// index, at most `max`.
+        #[test]
+        fn query_matches_brute_force(
+            pts in prop::collection::vec((0.0f64..300.0, 0.0f64..300.0), 1..120),
+            radius in 0.0f64..200.0,
+            max in 0usize..60,
+            snap in any::<bool>(),
+        ) {
+            // Snapped to a 10 px lattice, many distances tie exactly.
+            let positions: Vec<V2> = pts.iter().map(|&(x, y)| {
+                if snap { V2::new((x / 10.0).round() * 10.0, (y / 10.0).round() * 10.0) } else { V2::new(x, y) }
+            }).collect();
+            let valid = vec![true; positions.len()];
+            let mut grid = NeighborGrid::default();
+            grid.build(&positions, &valid, radius);
+            let mut out = Vec::new();
+            for me in 0..positions.len() {
+                grid.query(&positions, me, max, &mut out);
+                let mut want: Vec<(f64, usize)> = (0..positions.len())
+                    .filter(|&j| j != me)
+                    .map(|j| ((positions[j] - positions[me]).norm_squared(), j))
+                    .filter(|&(d2, _)| d2 < radius * radius)
+                    .collect();
+                want.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                want.truncate(max);
+                prop_assert_eq!(&out, &want);
+            }
         }
-        out.pop();
     }
-    out.push(item);
-    let mut k = out.len() - 1;
-    while k > 0 && out[k - 1].0 > item.0 {
-        out[k] = out[k - 1];
-        k -= 1;
-    }
-    out[k] = item;
 }

@@ -2,14 +2,12 @@
 //! classic RVO/ORCA baseline. Both share the polygon velocity obstacles, the grid and the LP.
 
 use crate::agent::Agent;
-use crate::geometry::{heading, is_finite, Ellipse, Polygon, UnitPolygon, MIN_SIZE, V2};
+use crate::geometry::{heading, is_finite, Ellipse, UnitPolygon, MIN_SIZE, V2};
 use crate::lp::{self, Line};
-use crate::minkowski;
 use crate::model::{MotionKind, MotionModel, MotionParams};
 use crate::neighbors::NeighborGrid;
-use crate::velocity_obstacle::{
-    avoidance_apart, avoidance_circle, reciprocal_line, Avoidance, AvoidanceScratch,
-};
+use crate::pair::{pair_avoidance, PairScratch, Shapes};
+use crate::velocity_obstacle::{avoidance_circle, reciprocal_line, Avoidance};
 
 /// How a pedestrian's footprint is built from its axes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -30,18 +28,15 @@ pub struct Orca {
     grid: NeighborGrid,
     positions: Vec<V2>,
     valid: Vec<bool>,
-    /// Each agent's polygon and its negation, prepared for Minkowski sums (see
-    /// [`minkowski::prepare`]): `sides + 1` points and `sides` edges per agent.
-    shape_pts: Vec<V2>,
-    shape_edges: Vec<V2>,
-    neg_pts: Vec<V2>,
-    neg_edges: Vec<V2>,
+    /// Each agent's polygon and its negation, prepared for the pair computations.
+    shapes: Shapes,
+    negated_shapes: Shapes,
     radii: Vec<f64>,
     /// Neighbours of agent `i`, nearest first: `nbr[nbr_start[i]..nbr_start[i + 1]]`.
     nbr_start: Vec<u32>,
     nbr: Vec<u32>,
-    /// Per neighbour slot (FRVO): the avoidance when the pair was apart, for the reverse pair.
-    avoid: Vec<Option<Avoidance>>,
+    /// Per neighbour slot (FRVO): the pair's avoidance, for the reverse pair.
+    avoid: Vec<Avoidance>,
     /// The neighbour lists transposed to earlier agents: agent `i`'s entries
     /// `rev[rev_start[i]..rev_start[i + 1]]` are `(j, t)` with `j < i` and `nbr[t] == i`, so the
     /// reverse pair is found without searching `j`'s list.
@@ -53,9 +48,7 @@ pub struct Orca {
     feasible: Vec<bool>,
     // Per-agent scratch, reused across agents and steps.
     polygon: Vec<V2>,
-    negated: Vec<V2>,
-    sum: Polygon,
-    vo_scratch: AvoidanceScratch,
+    pair_scratch: PairScratch,
     neighbors: Vec<(f64, usize)>,
     lines: Vec<Line>,
     scratch: Vec<Line>,
@@ -71,10 +64,8 @@ impl Orca {
             grid: NeighborGrid::default(),
             positions: Vec::new(),
             valid: Vec::new(),
-            shape_pts: Vec::new(),
-            shape_edges: Vec::new(),
-            neg_pts: Vec::new(),
-            neg_edges: Vec::new(),
+            shapes: Shapes::default(),
+            negated_shapes: Shapes::default(),
             radii: Vec::new(),
             nbr_start: Vec::new(),
             nbr: Vec::new(),
@@ -84,9 +75,7 @@ impl Orca {
             slot_in: Vec::new(),
             feasible: Vec::new(),
             polygon: Vec::new(),
-            negated: Vec::new(),
-            sum: Polygon::default(),
-            vo_scratch: AvoidanceScratch::default(),
+            pair_scratch: PairScratch::default(),
             neighbors: Vec::new(),
             lines: Vec::new(),
             scratch: Vec::new(),
@@ -165,31 +154,19 @@ impl Orca {
     }
 
     /// Builds every agent's polygon once per step (no trigonometry: the unit polygon is cached)
-    /// and prepares it and its negation for the Minkowski sums.
+    /// and prepares it and its negation for the pair computations.
     fn prepare_shapes(&mut self, agents: &[Agent]) {
-        self.shape_pts.clear();
-        self.shape_edges.clear();
-        self.neg_pts.clear();
-        self.neg_edges.clear();
-        for a in agents {
+        let sides = self.unit.sides();
+        self.shapes.reset(sides);
+        self.negated_shapes.reset(sides);
+        for (k, a) in agents.iter().enumerate() {
             let e = Ellipse::new(a.l, a.w, heading(a.vel, a.pref_vel));
             self.polygon.clear();
             e.for_each_vertex(&self.unit, |q| self.polygon.push(q));
-            self.negated.clear();
-            self.negated.extend(self.polygon.iter().map(|q| -q));
-            minkowski::prepare(&self.polygon, &mut self.shape_pts, &mut self.shape_edges);
-            minkowski::prepare(&self.negated, &mut self.neg_pts, &mut self.neg_edges);
+            self.shapes.push(&self.polygon);
+            self.negated_shapes.push_negated(&self.shapes, k);
         }
     }
-}
-
-/// Agent `k`'s prepared polygon: `sides + 1` points and `sides` edges.
-#[inline]
-fn prepared<'a>(pts: &'a [V2], edges: &'a [V2], sides: usize, k: usize) -> (&'a [V2], &'a [V2]) {
-    (
-        &pts[k * (sides + 1)..(k + 1) * (sides + 1)],
-        &edges[k * sides..(k + 1) * sides],
-    )
 }
 
 /// Larger of two sizes, ignoring a non-finite one.
@@ -258,7 +235,6 @@ impl MotionModel for Orca {
         self.feasible.clear();
         self.avoid.clear();
 
-        let sides = self.unit.sides();
         let mut out = Vec::with_capacity(agents.len());
         for (i, a) in agents.iter().enumerate() {
             let pref = finite_pref(a);
@@ -285,38 +261,26 @@ impl MotionModel for Orca {
                 let avoid = match self.footprint {
                     Footprint::Ellipse => {
                         // Agent j, if already done and i among its neighbours, computed the
-                        // reverse pair: apart, that is exactly the negation.
+                        // reverse pair: that is the negation (see `pair_avoidance`).
                         let t = self.slot_in[j];
-                        let reverse = if t != u32::MAX {
-                            self.avoid[t as usize]
-                        } else {
-                            None
-                        };
-                        let (avoid, apart) = match reverse {
-                            Some(r) => (
-                                Avoidance {
-                                    u: -r.u,
-                                    normal: -r.normal,
-                                },
-                                false,
-                            ),
-                            None => {
-                                // B ⊕ (-A), from the prepared polygons.
-                                let (pb, eb) =
-                                    prepared(&self.shape_pts, &self.shape_edges, sides, j);
-                                let (pa, ea) = prepared(&self.neg_pts, &self.neg_edges, sides, i);
-                                minkowski::merge_prepared(pb, eb, pa, ea, &mut self.sum);
-                                avoidance_apart(
-                                    rel_pos,
-                                    self.sum.points(),
-                                    rel_vel,
-                                    p.time_horizon,
-                                    dt,
-                                    &mut self.vo_scratch,
-                                )
+                        let avoid = if t != u32::MAX {
+                            let r = self.avoid[t as usize];
+                            Avoidance {
+                                u: -r.u,
+                                normal: -r.normal,
                             }
+                        } else {
+                            pair_avoidance(
+                                rel_pos,
+                                rel_vel,
+                                self.shapes.get(j),
+                                self.negated_shapes.get(i),
+                                p.time_horizon,
+                                dt,
+                                &mut self.pair_scratch,
+                            )
                         };
-                        self.avoid.push(apart.then_some(avoid));
+                        self.avoid.push(avoid);
                         avoid
                     }
                     Footprint::Circle => {
