@@ -70,7 +70,9 @@ class ReferenceDetector:
         path = find_model(DETECTOR_MODEL)
         # The package's decoder, used for letterboxing and decoding only; inference runs on a
         # session of the file as shipped (fixed batch 1), once per tile.
-        self.decoder = YoloSegDetector(path, tiles=(3, 2), full_frame=False, threads=1)
+        self.decoder = YoloSegDetector(
+            path, tiles=(3, 2), full_frame=False, threads=1, dequantize=False
+        )
         self.session = plain_session(path, threads)
         self.input_name = self.session.get_inputs()[0].name
 

@@ -34,6 +34,7 @@ YOLO = "yolov8n-seg-320-int8.onnx"
 def test_auto_grid_and_tiles_cover_the_frame() -> None:
     assert auto_grid(960, 540, 320) == (3, 2)
     assert auto_grid(1920, 1080, 320) == (3, 2)
+    assert auto_grid(768, 576, 320) == (2, 2)
     assert auto_grid(320, 240, 320) == (1, 1)
     tiles = make_tiles(960, 540, 3, 2)
     covered = np.zeros((540, 960), int)

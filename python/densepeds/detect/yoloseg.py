@@ -73,12 +73,14 @@ class YoloSegDetector:
     """Person detector and segmenter; call it on a BGR frame to get Detections with masks.
 
     ``full_frame=False`` (default) leaves out the whole-frame view when the frame is tiled: it
-    cost a seventh inference and added mostly low-score duplicates of tiled people (tracking
-    accuracy unchanged without it on MOT20-01-dev). ``dequantize=True`` runs a float copy of a
-    QDQ int8 export (made in memory at load time), 2.5-3x faster here; it is not the default
-    because its detections tracked worse on MOT20-01-dev (and better on PETS09) with the
-    tracker preset of the time: benchmarks/results/speed.md has the figures. A frame too small
-    for tiles is always seen whole.
+    cost an extra inference and added mostly low-score duplicates of tiled people (tracking
+    accuracy unchanged without it on MOT20-01-dev). ``dequantize=True`` (default) runs a float
+    copy of a QDQ int8 export, made in memory at load time from the same weights (a float
+    model is left as it is): about 2x faster here (onnxruntime cannot fuse this export's QDQ
+    pattern into integer kernels), and its scores separate people from clutter better, which
+    the pipeline's tracker preset relies on; ``dequantize=False`` runs the graph as shipped.
+    benchmarks/results/realvideo.md and speed.md have the figures. A frame too small for tiles
+    is always seen whole.
     """
 
     def __init__(
@@ -93,7 +95,7 @@ class YoloSegDetector:
         with_masks: bool = True,
         threads: int | None = None,
         person_class: int = 0,
-        dequantize: bool = False,
+        dequantize: bool = True,
     ) -> None:
         if not 0.0 <= score_threshold <= 1.0:
             raise ParameterError(f"score_threshold must be in [0, 1], got {score_threshold}")
