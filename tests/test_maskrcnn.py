@@ -8,7 +8,7 @@ import numpy as np
 import onnx
 import pytest
 from densepeds.detect import make_detector
-from densepeds.errors import ModelError
+from densepeds.errors import ModelError, ParameterError
 from onnx import TensorProto, helper, numpy_helper
 
 BOXES = np.array([[10, 10, 40, 50], [50, 5, 70, 45], [0, 0, 5, 5], [60, 40, 90, 75]], np.float32)
@@ -92,3 +92,9 @@ def test_maskrcnn_rejects_wrong_contract(tmp_path: Path) -> None:
     onnx.save(helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)]), str(path))
     with pytest.raises(ModelError, match="Mask R-CNN"):
         make_detector("maskrcnn", path)
+
+
+@pytest.mark.parametrize("option", [{"score_threshold": 1.5}, {"iou_threshold": 0.0}])
+def test_maskrcnn_rejects_bad_thresholds(tmp_path: Path, option: dict[str, float]) -> None:
+    with pytest.raises(ParameterError):
+        make_detector("maskrcnn", tiny_maskrcnn(tmp_path / "m.onnx"), **option)

@@ -41,6 +41,8 @@ class MaskRCNNDetector:
     ) -> None:
         if not 0.0 <= score_threshold <= 1.0:
             raise ParameterError(f"score_threshold must be in [0, 1], got {score_threshold}")
+        if not 0.0 < iou_threshold <= 1.0:
+            raise ParameterError(f"iou_threshold must be in (0, 1], got {iou_threshold}")
         self.path = model
         self.tiles = tiles
         self.score_threshold = score_threshold
