@@ -42,7 +42,7 @@ class FixedDetector:
 
     def __call__(self, frame: np.ndarray) -> Detections:
         self.frames += 1
-        return Detections([[1, 2, 11, 32], [20, 5, 30, 40]], [0.9, 0.4])
+        return Detections([[1, 2, 11, 42], [20, 5, 30, 45]], [0.9, 0.4])
 
 
 class RecordingEmbedder:
@@ -67,7 +67,7 @@ def test_step_runs_detection_features_and_tracking() -> None:
     np.testing.assert_allclose(scores, [0.9, 0.4])
     assert emb is not None and emb.shape == (2, 4) and embedder.kinds == ["bbox"]
     assert list(tracks.ids) == [100, 101]
-    assert track_rows(7, tracks)[1] == (7, 101, 20.0, 5.0, 30.0, 40.0, pytest.approx(0.4))
+    assert track_rows(7, tracks)[1] == (7, 101, 20.0, 5.0, 30.0, 45.0, pytest.approx(0.4))
     # Given detections win over the detector; no frame = no appearance features.
     pipe.step(None, Detections([[0, 0, 5, 5]], [1.0]))
     assert detector.frames == 1 and tracker.calls[-1][2] is None and len(embedder.kinds) == 1
@@ -227,7 +227,7 @@ def test_suppress_duplicates_by_containment_and_masks() -> None:
 def test_cnn_detections_are_filtered_and_det_index_refers_to_the_input() -> None:
     tracker, embedder = RecordingTracker(), RecordingEmbedder()
     dets = Detections(
-        [[0, 0, 10, 30], [1, 0, 11, 30], [40, 0, 50, 30], [60, 0, 70, 30]],
+        [[0, 0, 10, 40], [1, 0, 11, 40], [40, 0, 50, 40], [60, 0, 70, 40]],
         [0.9, 0.8, 0.05, 0.6],
     )
     emb = np.arange(16, dtype=np.float32).reshape(4, 4)
