@@ -148,40 +148,38 @@ impl NeighborGrid {
             }
             out.truncate(len);
         }
-        let by_distance =
-            |a: &(f64, usize), b: &(f64, usize)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+        // Squared distances are >= +0 and never NaN (finite positions), so their bit patterns
+        // order like the numbers: (bits, index) is the total order "nearest, then lower index".
+        let key = |x: &(f64, usize)| (x.0.to_bits(), x.1);
         if out.len() > max && max <= SMALL_MAX {
-            // A few nearest of many: one insertion pass into the front of `out` (each
-            // candidate is read before the kept prefix can reach its slot).
-            let mut kept = 0;
-            for idx in 0..out.len() {
-                let item = out[idx];
-                if kept == max {
-                    if by_distance(&item, &out[max - 1]).is_ge() {
-                        continue;
+            // A few nearest of many: keep `max` of them unsorted in front, replacing the worst
+            // kept one when a nearer candidate comes (rare once the front is near).
+            let worst_of = |front: &[(f64, usize)]| {
+                let mut w = 0;
+                for (i, x) in front.iter().enumerate() {
+                    if key(x) > key(&front[w]) {
+                        w = i;
                     }
-                    kept -= 1;
                 }
-                let mut pos = kept;
-                while pos > 0 && by_distance(&item, &out[pos - 1]).is_lt() {
-                    out[pos] = out[pos - 1];
-                    pos -= 1;
+                w
+            };
+            let mut worst = worst_of(&out[..max]);
+            for idx in max..out.len() {
+                if key(&out[idx]) < key(&out[worst]) {
+                    out[worst] = out[idx];
+                    worst = worst_of(&out[..max]);
                 }
-                out[pos] = item;
-                kept += 1;
             }
-            out.truncate(kept);
-            return;
-        }
-        if out.len() > max {
-            out.select_nth_unstable_by(max - 1, by_distance);
+            out.truncate(max);
+        } else if out.len() > max {
+            out.select_nth_unstable_by_key(max - 1, key);
             out.truncate(max);
         }
-        out.sort_unstable_by(by_distance);
+        out.sort_unstable_by_key(key);
     }
 }
 
-/// Up to this many nearest are picked by insertion, more by selection then sorting.
+/// Up to this many nearest are picked by replacement, more by selection; then sorted.
 const SMALL_MAX: usize = 16;
 
 /// Distance (in cells) from coordinate `x` (in cells) to the nearest point of cell `i`.

@@ -209,7 +209,10 @@ pub(crate) fn pair_avoidance(
     // exhausted walk rests on its sentinel, whose angle is past every other.
     let (mut i, mut j, mut k) = (0usize, 0usize, 0usize);
     let mut facing = 0u64;
-    while (i < n || j < m) && k < MAX_VERTICES {
+    // Every step advances at least one walk (two angles cannot each exceed the other by the
+    // margin), and neither passes its sentinel before the other's is reached: n + m steps at
+    // most, within MAX_VERTICES since each polygon has at most MAX_SIDES.
+    while i + j < n + m && k < MAX_VERTICES {
         let (eb, ea) = (b.edges[i], neg_a.edges[j]);
         let adv_b = !(ea.angle_hi < eb.angle);
         let adv_a = !(eb.angle_hi < ea.angle);
