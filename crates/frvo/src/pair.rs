@@ -278,24 +278,23 @@ fn nearest(
     legs: &[(V2, V2, V2)],
 ) -> Avoidance {
     // Signed distance of `w` outside each feature's supporting line. Inside the region (all
-    // <= 0) the nearest boundary point lies on the nearest line.
-    let mut sd = [0.0f64; MAX_VERTICES + 2];
+    // <= 0) the nearest boundary point lies on the nearest line. (Recomputed below rather
+    // than stored: an array for them cost a zero-fill per pair.)
+    let side = |k: usize| (w - (p + poly.v[k]) * scale).dot(&poly.n[k]);
+    let next = |k: usize| if k + 1 == len { 0 } else { k + 1 };
     let mut best_sd = f64::NEG_INFINITY;
     let mut best_normal = V2::zeros();
     let mut k = first;
-    for slot in sd.iter_mut().take(count) {
-        let start = (p + poly.v[k]) * scale;
-        let d = (w - start).dot(&poly.n[k]);
-        *slot = d;
+    for _ in 0..count {
+        let d = side(k);
         if d > best_sd {
             best_sd = d;
             best_normal = poly.n[k];
         }
-        k = if k + 1 == len { 0 } else { k + 1 };
+        k = next(k);
     }
-    for (slot, &(start, _, normal)) in sd[count..].iter_mut().zip(legs) {
+    for &(start, _, normal) in legs {
         let d = (w - start).dot(&normal);
-        *slot = d;
         if d > best_sd {
             best_sd = d;
             best_normal = normal;
@@ -321,8 +320,8 @@ fn nearest(
     let mut best_d2 = f64::INFINITY;
     let mut best = (w, best_normal);
     let mut k = first;
-    for &d in &sd[..count] {
-        if d > margin {
+    for _ in 0..count {
+        if side(k) > margin {
             let start = (p + poly.v[k]) * scale;
             let edge = poly.e[k] * scale;
             let e2 = edge.norm_squared();
@@ -338,10 +337,10 @@ fn nearest(
                 best = (c, poly.n[k]);
             }
         }
-        k = if k + 1 == len { 0 } else { k + 1 };
+        k = next(k);
     }
-    for (&d, &(start, dir, normal)) in sd[count..].iter().zip(legs) {
-        if d > margin {
+    for &(start, dir, normal) in legs {
+        if (w - start).dot(&normal) > margin {
             let e2 = dir.norm_squared();
             let t = if e2 > 0.0 {
                 ((w - start).dot(&dir) / e2).max(0.0)
