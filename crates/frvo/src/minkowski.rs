@@ -1,8 +1,9 @@
 //! Minkowski sum of two convex polygons in O(n + m) by merging their edges in angle order.
 //!
-//! The hot path sums the same polygons against many partners, so each polygon is prepared once
-//! ([`prepare`]: vertices from the lowest one, closed, with edge vectors) and [`merge_prepared`]
-//! only merges; [`minkowski_sum`] is the one-off form on [`Polygon`]s.
+//! [`prepare`] puts a polygon in merge order (vertices from the lowest one, closed, with edge
+//! vectors) and [`merge_prepared`] merges two such; [`minkowski_sum`] is the form on
+//! [`Polygon`]s. The crowd step does its own merge (`pair::pair_avoidance`), tested against
+//! this one.
 
 use crate::geometry::{cross, lowest_vertex, Polygon, MAX_VERTICES, V2};
 

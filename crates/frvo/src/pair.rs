@@ -10,7 +10,7 @@
 //! step built on this against the plain composition of the public pieces.
 
 use crate::geometry::{cross, left_normal, lowest_vertex, right_normal, MAX_VERTICES, V2};
-use crate::velocity_obstacle::Avoidance;
+use crate::velocity_obstacle::{unit, Avoidance};
 
 /// Edges whose pseudo-angles (see [`pseudo_angle`]) differ by at most this are merged as
 /// parallel: a few times rounding noise, like [`crate::minkowski::PARALLEL_SIN`] for the
@@ -55,6 +55,25 @@ struct Edge {
     angle_hi: f64,
 }
 
+impl Edge {
+    fn new(vec: V2, normal: V2, angle: f64) -> Self {
+        Self {
+            vec,
+            normal,
+            angle,
+            angle_hi: angle + PARALLEL_ANGLE,
+        }
+    }
+
+    /// Ends each agent's edge list: zero edge, angle past every other.
+    const SENTINEL: Self = Self {
+        vec: V2::new(0.0, 0.0),
+        normal: V2::new(0.0, 0.0),
+        angle: SENTINEL_ANGLE,
+        angle_hi: SENTINEL_ANGLE,
+    };
+}
+
 /// One agent's prepared polygon.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Prepared<'a> {
@@ -95,19 +114,9 @@ impl Shapes {
             } else {
                 e.angle + 2.0
             };
-            self.edges.push(Edge {
-                vec: -e.vec,
-                normal: -e.normal,
-                angle,
-                angle_hi: angle + PARALLEL_ANGLE,
-            });
+            self.edges.push(Edge::new(-e.vec, -e.normal, angle));
         }
-        self.edges.push(Edge {
-            vec: V2::zeros(),
-            normal: V2::zeros(),
-            angle: SENTINEL_ANGLE,
-            angle_hi: SENTINEL_ANGLE,
-        });
+        self.edges.push(Edge::SENTINEL);
     }
 
     /// Appends a counter-clockwise polygon of `sides` vertices.
@@ -124,19 +133,10 @@ impl Shapes {
             // a tie, and never past their sentinels.
             let angle = pseudo_angle(vec);
             let angle = if angle.is_nan() { 0.0 } else { angle };
-            self.edges.push(Edge {
-                vec,
-                normal: unit(right_normal(vec)),
-                angle,
-                angle_hi: angle + PARALLEL_ANGLE,
-            });
+            self.edges
+                .push(Edge::new(vec, unit(right_normal(vec)), angle));
         }
-        self.edges.push(Edge {
-            vec: V2::zeros(),
-            normal: V2::zeros(),
-            angle: SENTINEL_ANGLE,
-            angle_hi: SENTINEL_ANGLE,
-        });
+        self.edges.push(Edge::SENTINEL);
     }
 
     #[inline]
@@ -165,15 +165,6 @@ impl Default for PairScratch {
             e: [V2::zeros(); MAX_VERTICES],
             n: [V2::zeros(); MAX_VERTICES],
         }
-    }
-}
-
-fn unit(v: V2) -> V2 {
-    let n = v.norm();
-    if n > 0.0 && n.is_finite() {
-        v / n
-    } else {
-        V2::zeros()
     }
 }
 

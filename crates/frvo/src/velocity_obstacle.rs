@@ -30,55 +30,15 @@ pub struct Avoidance {
 // The facing-edge bit mask holds one bit per vertex.
 const _: () = assert!(MAX_VERTICES <= 64);
 
-/// Reusable buffer for [`avoidance_with`], so that the hot path does not allocate or zero-fill.
-#[derive(Clone, Debug, Default)]
-pub struct AvoidanceScratch {
-    feats: Vec<Feature>,
-}
-
 /// Avoidance for relative velocity `w`, relative position `p`, Minkowski sum `sum = B ⊕ (-A)`.
 /// Apart (origin outside `P`): the truncated cone for horizon `tau`. Overlapping: as RVO2 does,
-/// the obstacle is `P / dt`, so that the overlap is resolved within one step.
+/// the obstacle is `P / dt`, so that the overlap is resolved within one step. This is the
+/// plain form, built from the whole sum; the crowd step computes the same in one pass
+/// (`pair::pair_avoidance`) and is tested against it.
 pub fn avoidance(p: V2, sum: &Polygon, w: V2, tau: f64, dt: f64) -> Avoidance {
-    avoidance_with(
-        p,
-        sum.points(),
-        w,
-        tau,
-        dt,
-        &mut AvoidanceScratch::default(),
-    )
-}
-
-/// [`avoidance`] for the counter-clockwise vertices `sum` (at most [`MAX_VERTICES`] are used),
-/// with a reused buffer.
-pub fn avoidance_with(
-    p: V2,
-    sum: &[V2],
-    w: V2,
-    tau: f64,
-    dt: f64,
-    scratch: &mut AvoidanceScratch,
-) -> Avoidance {
-    avoidance_apart(p, sum, w, tau, dt, scratch).0
-}
-
-/// [`avoidance_with`], and whether the shapes were apart (the truncated-cone branch). Apart,
-/// the computation is exactly antisymmetric: swapping the two agents negates `p`, `w` and the
-/// Minkowski sum (the same vertices, negated, from another start), and every step then
-/// yields the negated result bit for bit, so a caller may reuse it for the reverse pair.
-pub(crate) fn avoidance_apart(
-    p: V2,
-    sum: &[V2],
-    w: V2,
-    tau: f64,
-    dt: f64,
-    scratch: &mut AvoidanceScratch,
-) -> (Avoidance, bool) {
-    let pts = sum;
+    let pts = sum.points();
     let n = pts.len().min(MAX_VERTICES);
-    let feats = &mut scratch.feats;
-    feats.clear();
+    let mut feats = Vec::with_capacity(n + 2);
     let next = |i: usize| if i + 1 == n { 0 } else { i + 1 };
     // Edge i (from vertex i to i+1) faces the origin when the origin is on its outer side;
     // bit i of `facing`. The facing edges of a convex polygon are one contiguous run (none
@@ -98,7 +58,6 @@ pub(crate) fn avoidance_apart(
             first = Some(starts.trailing_zeros() as usize);
         }
     }
-    let apart = first.is_some();
     match first {
         Some(first) => {
             let inv_tau = 1.0 / tau;
@@ -146,10 +105,10 @@ pub(crate) fn avoidance_apart(
             }
         }
     }
-    (nearest_boundary(feats, w), apart)
+    nearest_boundary(&feats, w)
 }
 
-fn unit(v: V2) -> V2 {
+pub(crate) fn unit(v: V2) -> V2 {
     let n = v.norm();
     if n > 0.0 && n.is_finite() {
         v / n
