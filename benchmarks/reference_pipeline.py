@@ -21,8 +21,6 @@ import argparse
 import os
 import sys
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # numpy's BLAS threads fight onnxruntime's
@@ -32,7 +30,7 @@ import onnxruntime as ort
 from densepeds.detect.yoloseg import YoloSegDetector
 from densepeds.modelfiles import find_model
 from densepeds.motio import write_tracks
-from densepeds.pipeline import track_rows
+from densepeds.pipeline import StageTimes, track_rows
 from densepeds.reid import ReID
 from densepeds.tracking import Tracker
 from densepeds.types import Detections
@@ -41,19 +39,6 @@ from densepeds.video import open_source, parse_frame_range
 STAGES = ("load", "decode", "detection", "masks", "reid", "tracking", "output")
 DETECTOR_MODEL = "yolov8n-seg-320-int8.onnx"
 REID_MODEL = "osnet_x0_25_msmt17.onnx"
-
-
-class Timer:
-    def __init__(self) -> None:
-        self.seconds = dict.fromkeys(STAGES, 0.0)
-
-    @contextmanager
-    def stage(self, name: str) -> Iterator[None]:
-        start = time.perf_counter()
-        try:
-            yield
-        finally:
-            self.seconds[name] += time.perf_counter() - start
 
 
 def plain_session(path: Path, threads: int) -> ort.InferenceSession:
@@ -76,7 +61,7 @@ class ReferenceDetector:
         self.session = plain_session(path, threads)
         self.input_name = self.session.get_inputs()[0].name
 
-    def __call__(self, frame: np.ndarray, timer: Timer) -> Detections:
+    def __call__(self, frame: np.ndarray, timer: StageTimes) -> Detections:
         d = self.decoder
         height, width = frame.shape[:2]
         with timer.stage("detection"):
@@ -109,7 +94,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--threads", type=int, default=2, help="onnxruntime intra-op threads")
     args = ap.parse_args(argv)
     start = time.perf_counter()
-    timer = Timer()
+    timer = StageTimes(seconds=dict.fromkeys(STAGES, 0.0))
     with timer.stage("load"):
         ort.set_default_logger_severity(3)
         detector = ReferenceDetector(args.threads)
