@@ -1,6 +1,8 @@
-//! Neighbour search on a uniform grid of cells at least half as wide as the search radius: a
-//! query reads, row by row, the run of cells that the disc reaches (one contiguous slice of
-//! the agents per row, about twice the disc's area). Building is O(N).
+//! Neighbour search on a uniform grid of about one agent per cell. A query searches a disc
+//! that the crowd's density predicts to hold a few more agents than wanted, and a wider one only
+//! where that disc holds too few (the agents within a disc are the nearest if there are enough
+//! of them), reading the cells row by row (one contiguous slice of the agents per row). Building
+//! is O(N).
 
 use crate::geometry::V2;
 
@@ -11,7 +13,11 @@ const MAX_CELLS_PER_AXIS: usize = 1024;
 pub struct NeighborGrid {
     radius: f64,
     cell: f64,
+    /// Bounding box of the agents.
     min: V2,
+    max: V2,
+    /// Agents per unit area of the bounding box padded by a cell.
+    density: f64,
     nx: usize,
     ny: usize,
     /// Agents of cell `c` are `items[starts[c]..starts[c + 1]]`, stored with their positions
@@ -29,27 +35,36 @@ impl NeighborGrid {
             radius.max(0.0)
         };
         let (mut lo, mut hi) = (V2::repeat(f64::INFINITY), V2::repeat(f64::NEG_INFINITY));
+        let mut n = 0usize;
         for (p, _) in positions.iter().zip(valid).filter(|(_, &ok)| ok) {
             lo = lo.inf(p);
             hi = hi.sup(p);
+            n += 1;
         }
         self.starts.clear();
         self.items.clear();
-        if lo.x > hi.x {
+        if n == 0 {
             (self.nx, self.ny) = (0, 0);
             return;
         }
         let extent = hi - lo;
-        let per_axis =
-            ((positions.len() as f64).sqrt().ceil() as usize).clamp(1, MAX_CELLS_PER_AXIS);
-        // Cells no narrower than half the radius, and not so many that the grid outgrows the
-        // crowd.
-        let floor = extent.x.max(extent.y) / per_axis as f64;
-        self.cell = (0.5 * self.radius).max(floor).max(1e-9);
+        let longest = extent.x.max(extent.y);
+        // About one agent per cell (the bounding box's area per agent), but no more cells along
+        // an axis than agents, so that a thin crowd cannot blow up the grid. A query's first
+        // disc holds about `max` agents whatever the radius: cells sized by the radius would
+        // make it read many more.
+        self.cell = (extent.x * extent.y / n as f64)
+            .sqrt()
+            .max(longest / n as f64)
+            .max(longest / MAX_CELLS_PER_AXIS as f64)
+            .max(1e-9);
         if !self.cell.is_finite() {
             self.cell = f64::MAX;
         }
+        // Padded, as a lattice of m x m agents spaced s spans (m - 1) s.
+        self.density = n as f64 / ((extent.x + self.cell) * (extent.y + self.cell));
         self.min = lo;
+        self.max = hi;
         self.nx = self.axis_cells(extent.x);
         self.ny = self.axis_cells(extent.y);
         let cells = self.nx * self.ny;
@@ -108,79 +123,184 @@ impl NeighborGrid {
         if !(p.x.is_finite() && p.y.is_finite()) {
             return;
         }
-        let r2 = self.radius * self.radius;
+        // Every agent lies within sqrt(far2) of p: a disc wider than that finds them all.
+        let far = (p - self.min).abs().sup(&(self.max - p).abs());
+        let far2 = far.norm_squared();
+        // A few more than `max`, so that the first disc rarely falls short.
+        let want = max as f64 + (max as f64).sqrt() + 2.0;
+        let mut r = self.first_radius(p, want).max(self.cell).min(self.radius);
+        loop {
+            let mut disc = Disc::new(p, r, me, want, max);
+            out.resize(disc.front, (0.0, 0));
+            self.collect(&mut disc, out);
+            // With `max` agents within r <= radius, any agent outside is farther than all of
+            // them: they are the nearest `max`.
+            let found = out.len() - disc.front;
+            if found >= max || r >= self.radius || r * r > far2 {
+                disc.sort(out, max);
+                return;
+            }
+            // Wider by the density found (at least by half), to hold `want` this time.
+            let grow = (want / (found + 1) as f64).sqrt().max(1.5);
+            r = (r * grow).min(self.radius);
+            out.clear();
+        }
+    }
+
+    /// A radius around `p` within which the crowd's density predicts `want` agents, widened
+    /// where the disc sticks out of the crowd's bounding box.
+    fn first_radius(&self, p: V2, want: f64) -> f64 {
+        let r = (want / (std::f64::consts::PI * self.density)).sqrt();
+        // Share of the disc's bounding square inside the padded box.
+        let pad = 0.5 * self.cell;
+        let inside =
+            |lo: f64, hi: f64, x: f64| ((x + r).min(hi + pad) - (x - r).max(lo - pad)) / (2.0 * r);
+        let share = inside(self.min.x, self.max.x, p.x) * inside(self.min.y, self.max.y, p.y);
+        if share > 0.0 && share < 1.0 {
+            r / share.sqrt()
+        } else {
+            r
+        }
+    }
+
+    /// Appends the agents within the disc (other than its `me`) to `out`, unordered, and files
+    /// them in the disc's buckets.
+    fn collect(&self, disc: &mut Disc, out: &mut Vec<(f64, usize)>) {
+        let (p, r2, me, scale, front) = (disc.p, disc.r2, disc.me, disc.scale, disc.front);
         let local = (p - self.min) / self.cell;
-        let reach = self.radius / self.cell;
+        // A hair wider, so that rounding cannot drop a cell that holds an agent within r.
+        let reach = r2.sqrt() / self.cell * (1.0 + 1e-9);
+        // The cells from `lo` to `hi` (in cells) that exist: truncating the clamped values
+        // floors them, without a call to `floor`.
         let cells = |lo: f64, hi: f64, n: usize| {
-            let first = lo.floor().max(0.0) as usize;
-            let last = (hi.floor().max(0.0) as usize).min(n - 1);
-            first..last + 1
+            let top = (n - 1) as f64;
+            (lo.max(0.0).min(top) as u32, hi.max(0.0).min(top) as u32)
         };
-        for iy in cells(local.y - reach, local.y + reach, self.ny) {
+        let (y0, y1) = cells(local.y - reach, local.y + reach, self.ny);
+        for iy in y0 as usize..=y1 as usize {
             // The disc's half-width (in cells) at the row's nearest edge to p: the cells of the
             // row within it are contiguous in `items`, so they are read as one slice.
             let gap = axis_gap(local.y, iy);
-            let half = reach * reach - gap * gap;
-            if half.is_nan() || half <= 0.0 {
+            if gap > reach {
                 continue;
             }
-            let half = half.sqrt();
-            let xs = cells(local.x - half, local.x + half, self.nx);
-            if xs.is_empty() {
-                continue;
-            }
+            // Not sqrt(reach^2 - gap^2), which underflows to 0 for a tiny reach.
+            let half = (reach - gap).sqrt() * (reach + gap).sqrt();
+            let (x0, x1) = cells(local.x - half, local.x + half, self.nx);
             let row = iy * self.nx;
-            let slice = &self.items
-                [self.starts[row + xs.start] as usize..self.starts[row + xs.end] as usize];
-            // All are written, then compacted to those strictly within the radius: no branch
-            // to mispredict on about half of them.
-            let start = out.len();
-            out.extend(
-                slice
-                    .iter()
-                    .map(|&(q, j)| ((q - p).norm_squared(), j as usize)),
-            );
-            let mut len = start;
-            for idx in start..out.len() {
-                let item = out[idx];
-                out[len] = item;
-                len += usize::from(item.0 < r2 && item.1 != me);
-            }
-            out.truncate(len);
-        }
-        // Squared distances are >= +0 and never NaN (finite positions), so their bit patterns
-        // order like the numbers: (bits, index) is the total order "nearest, then lower index".
-        let key = |x: &(f64, usize)| (x.0.to_bits(), x.1);
-        if out.len() > max && max <= SMALL_MAX {
-            // A few nearest of many: keep `max` of them unsorted in front, replacing the worst
-            // kept one when a nearer candidate comes (rare once the front is near).
-            let worst_of = |front: &[(f64, usize)]| {
-                let mut w = 0;
-                for (i, x) in front.iter().enumerate() {
-                    if key(x) > key(&front[w]) {
-                        w = i;
+            let slice = &self.items[self.starts[row + x0 as usize] as usize
+                ..self.starts[row + x1 as usize + 1] as usize];
+            for &(q, j) in slice {
+                let d2 = (q - p).norm_squared();
+                if d2 < r2 && j as usize != me {
+                    let i = out.len() - front;
+                    if i < FILED {
+                        // Adding 2^52 rounds a number in [0, 2^52) to an integer in the low
+                        // mantissa bits: monotone, as a conversion to an integer is, and
+                        // cheaper. Within the disc, b <= buckets <= BUCKETS.
+                        let b = ((d2 * scale + ROUND).to_bits() - ROUND.to_bits()) as usize;
+                        let b = b.min(BUCKETS);
+                        disc.next[i] = disc.head[b];
+                        disc.head[b] = i as u8;
                     }
-                }
-                w
-            };
-            let mut worst = worst_of(&out[..max]);
-            for idx in max..out.len() {
-                if key(&out[idx]) < key(&out[worst]) {
-                    out[worst] = out[idx];
-                    worst = worst_of(&out[..max]);
+                    out.push((d2, j as usize));
                 }
             }
-            out.truncate(max);
-        } else if out.len() > max {
-            out.select_nth_unstable_by_key(max - 1, key);
-            out.truncate(max);
         }
-        out.sort_unstable_by_key(key);
     }
 }
 
-/// Up to this many nearest are picked by replacement, more by selection; then sorted.
-const SMALL_MAX: usize = 16;
+/// Most buckets of a disc (plus one: agents at the disc's edge may round up to it).
+const BUCKETS: usize = 128;
+/// Buckets per agent wanted: a few agents in a bucket cost less to order than more buckets
+/// to visit.
+const BUCKETS_PER_AGENT: f64 = 0.5;
+/// The end of a bucket's list.
+const NONE: u8 = u8::MAX;
+/// Most agents filed in buckets: more are sorted whole.
+const FILED: usize = NONE as usize;
+/// See `collect`.
+const ROUND: f64 = (1u64 << 52) as f64;
+
+/// A search disc around `p` (for agent `me`) and the agents found within it, filed in buckets
+/// of equal width in squared distance: agents spread evenly over the disc spread evenly over
+/// the buckets, a few in each, so that ordering them is little more than reading the buckets in
+/// turn.
+struct Disc {
+    p: V2,
+    r2: f64,
+    me: usize,
+    /// Buckets per unit of squared distance.
+    scale: f64,
+    buckets: usize,
+    /// `out[..front]` is room for the nearest, and the agents found follow.
+    front: usize,
+    /// Bucket `b` lists the agents `head[b]`, `next[head[b]]`, ... (`i` is `out[front + i]`).
+    head: [u8; BUCKETS + 1],
+    next: [u8; FILED + 1],
+}
+
+impl Disc {
+    fn new(p: V2, r: f64, me: usize, want: f64, max: usize) -> Self {
+        let r2 = r * r;
+        let buckets = ((want * BUCKETS_PER_AGENT) as usize).clamp(1, BUCKETS);
+        let scale = buckets as f64 / r2;
+        Self {
+            p,
+            r2,
+            me,
+            // Infinite only for a tiny r2: all in one bucket then.
+            scale: if scale.is_finite() { scale } else { 0.0 },
+            buckets,
+            // One spare, so that inserting into a full front needs no check.
+            front: max.min(FILED) + 1,
+            head: [NONE; BUCKETS + 1],
+            next: [NONE; FILED + 1],
+        }
+    }
+
+    /// Replaces `out` (room for the nearest, then the agents found) with the nearest `max`
+    /// agents found, nearest first (equal distances by index).
+    fn sort(&self, out: &mut Vec<(f64, usize)>, max: usize) {
+        // Squared distances are >= +0 and never NaN (finite positions), so their bit patterns
+        // order like the numbers: (bits, index) is the total order "nearest, then lower index".
+        let key = |x: &(f64, usize)| (x.0.to_bits(), x.1);
+        let (front, found) = (self.front, out.len() - self.front);
+        if found > FILED {
+            out.drain(..front);
+            if found > max {
+                out.select_nth_unstable_by_key(max - 1, key);
+                out.truncate(max);
+            }
+            out.sort_unstable_by_key(key);
+            return;
+        }
+        // Bucket by bucket, nearest first, until `max` are placed: each agent is inserted among
+        // those placed, of which only the ones of its bucket can be farther.
+        let (placed, agents) = out.split_at_mut(front);
+        let full = front - 1;
+        let mut n = 0;
+        for &first in &self.head[..=self.buckets] {
+            let mut i = first;
+            let start = n;
+            while i != NONE {
+                let x = agents[i as usize];
+                let mut at = n;
+                while at > start && key(&x) < key(&placed[at - 1]) {
+                    placed[at] = placed[at - 1];
+                    at -= 1;
+                }
+                placed[at] = x;
+                n = (n + 1).min(full);
+                i = self.next[i as usize];
+            }
+            if n == full {
+                break;
+            }
+        }
+        out.truncate(n);
+    }
+}
 
 /// Distance (in cells) from coordinate `x` (in cells) to the nearest point of cell `i`.
 #[inline]
@@ -200,11 +320,35 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
+    /// Checks every agent's query (valid or not) against brute force: the valid agents other
+    /// than it strictly within the radius, nearest first, ties by index, at most `max`.
+    fn check(
+        positions: &[V2],
+        valid: &[bool],
+        radius: f64,
+        max: usize,
+    ) -> Result<(), TestCaseError> {
+        let mut grid = NeighborGrid::default();
+        grid.build(positions, valid, radius);
+        let mut out = Vec::new();
+        for me in 0..positions.len() {
+            grid.query(positions, me, max, &mut out);
+            let mut want: Vec<(f64, usize)> = (0..positions.len())
+                .filter(|&j| j != me && valid[j] && radius > 0.0)
+                .map(|j| ((positions[j] - positions[me]).norm_squared(), j))
+                .filter(|&(d2, _)| d2 < radius * radius)
+                .collect();
+            want.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            want.truncate(max);
+            prop_assert_eq!(&out, &want, "agent {}", me);
+        }
+        Ok(())
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig { cases: 500, failure_persistence: None, ..ProptestConfig::default() })]
 
-        /// The grid's answer is the brute-force one: within the radius, nearest first, ties by
-        /// index, at most `max`.
+        /// The grid's answer is the brute-force one.
         #[test]
         fn query_matches_brute_force(
             pts in prop::collection::vec((0.0f64..300.0, 0.0f64..300.0), 1..120),
@@ -216,21 +360,69 @@ mod tests {
             let positions: Vec<V2> = pts.iter().map(|&(x, y)| {
                 if snap { V2::new((x / 10.0).round() * 10.0, (y / 10.0).round() * 10.0) } else { V2::new(x, y) }
             }).collect();
-            let valid = vec![true; positions.len()];
-            let mut grid = NeighborGrid::default();
-            grid.build(&positions, &valid, radius);
-            let mut out = Vec::new();
-            for me in 0..positions.len() {
-                grid.query(&positions, me, max, &mut out);
-                let mut want: Vec<(f64, usize)> = (0..positions.len())
-                    .filter(|&j| j != me)
-                    .map(|j| ((positions[j] - positions[me]).norm_squared(), j))
-                    .filter(|&(d2, _)| d2 < radius * radius)
-                    .collect();
-                want.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-                want.truncate(max);
-                prop_assert_eq!(&out, &want);
+            check(&positions, &vec![true; positions.len()], radius, max)?;
+        }
+
+        /// Also in clusters far apart, where the crowd's density misleads the first disc (too
+        /// wide in a cluster, too narrow between them), with invalid agents.
+        #[test]
+        fn query_matches_brute_force_in_clusters(
+            clusters in prop::collection::vec(
+                ((-1e4f64..1e4, -1e4f64..1e4), 0.0f64..100.0, prop::collection::vec((-1.0f64..1.0, -1.0f64..1.0), 1..60)),
+                1..4,
+            ),
+            valid in prop::collection::vec(prop::bool::weighted(0.9), 240),
+            log_radius in 0.0f64..4.5,
+            max in 0usize..80,
+        ) {
+            let positions: Vec<V2> = clusters.iter().flat_map(|&((cx, cy), spread, ref pts)| {
+                pts.iter().map(move |&(x, y)| V2::new(cx + spread * x, cy + spread * y))
+            }).collect();
+            check(&positions, &valid[..positions.len()], 10f64.powf(log_radius), max)?;
+        }
+    }
+
+    #[test]
+    fn coincident_agents_and_odd_radii() {
+        let positions = vec![V2::new(5.0, -3.0); 40];
+        let valid = vec![true; 40];
+        for radius in [0.0, -1.0, f64::NAN, 1e-300, 1.0, f64::INFINITY] {
+            for max in [0, 1, 10, 39, 100] {
+                check(&positions, &valid, radius, max).unwrap();
             }
+        }
+    }
+
+    #[test]
+    fn huge_coordinates() {
+        let positions = vec![
+            V2::new(1e300, -1e300),
+            V2::new(-1e300, 1e300),
+            V2::new(f64::MAX, 0.0),
+            V2::new(0.0, 0.0),
+            V2::new(1.0, 1.0),
+            V2::new(1e6, 1e6),
+        ];
+        let valid = vec![true; positions.len()];
+        for radius in [1.0, 10.0, 1e7, f64::INFINITY] {
+            for max in [1, 3, 10] {
+                check(&positions, &valid, radius, max).unwrap();
+            }
+        }
+    }
+
+    /// More agents within a disc than the buckets take: sorted whole.
+    #[test]
+    fn crowded_discs() {
+        // A dense 20 x 20 lattice, and one agent far away that makes the crowd look sparse.
+        let mut positions: Vec<V2> = (0..400)
+            .map(|i| V2::new((i % 20) as f64, (i / 20) as f64))
+            .collect();
+        positions.push(V2::new(1e5, 1e5));
+        let valid = vec![true; positions.len()];
+        for max in [1, 5, 254, 255, 256, 300, usize::MAX] {
+            check(&positions, &valid, 1e6, max).unwrap();
+            check(&positions[..400], &valid[..400], 12.0, max).unwrap();
         }
     }
 }
