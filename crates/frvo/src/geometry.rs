@@ -222,6 +222,15 @@ impl UnitPolygon {
             let t = k as f64 * step;
             *cs = (t.cos(), t.sin());
         }
+        if n % 2 == 0 {
+            // Exactly centrally symmetric (trigonometry rounds the two halves differently), so
+            // that every ellipse polygon equals its own reflection bit for bit: the crowd step
+            // then needs no separate negated polygons.
+            for k in n / 2..n {
+                let (c, s) = angles[k - n / 2];
+                angles[k] = (-c, -s);
+            }
+        }
         Self {
             r: 1.0 / (0.5 * step).cos(),
             angles,
@@ -232,6 +241,13 @@ impl UnitPolygon {
     #[inline]
     pub fn sides(&self) -> usize {
         self.len
+    }
+
+    /// Whether every polygon built from this one is its own reflection through its centre,
+    /// bit for bit (even `sides`).
+    #[inline]
+    pub fn is_symmetric(&self) -> bool {
+        self.len % 2 == 0
     }
 
     #[inline]

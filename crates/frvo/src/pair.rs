@@ -9,7 +9,7 @@
 //! boundary point, so only those are projected on. `tests/orca_reference.rs` checks the crowd
 //! step built on this against the plain composition of the public pieces.
 
-use crate::geometry::{cross, left_normal, lowest_vertex, right_normal, MAX_VERTICES, V2};
+use crate::geometry::{left_normal, lowest_vertex, right_normal, MAX_VERTICES, V2};
 use crate::velocity_obstacle::{unit, Avoidance};
 
 /// Edges whose pseudo-angles (see [`pseudo_angle`]) differ by at most this are merged as
@@ -36,147 +36,169 @@ fn pseudo_angle(d: V2) -> f64 {
     }
 }
 
-/// Every agent's polygon prepared for [`pair_avoidance`], in flat arrays: per agent `sides + 1`
-/// points (from the lowest vertex, closed), and `sides + 1` edges, each with its unit outward
-/// normal and its pseudo-angle (the last a sentinel: zero edge, angle past every other).
+/// Every agent's polygon prepared for [`pair_avoidance`], in one flat array. Per agent, from
+/// the lowest vertex: each edge with its start vertex, unit outward normal and pseudo-angle,
+/// then a sentinel (the next vertex, zero normal, an angle past every other). A polygon that
+/// is its own reflection through the origin (an even number of sides, see
+/// [`crate::geometry::UnitPolygon::is_symmetric`]) keeps only its first half of edges, those
+/// with pseudo-angles in `[0, 2)`: the other half is their negation, and the Minkowski sum of
+/// two such polygons is symmetric too, so only its first half is merged.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Shapes {
     sides: usize,
-    pts: Vec<V2>,
+    symmetric: bool,
     edges: Vec<Edge>,
 }
 
-/// An edge vector, its unit outward normal and its pseudo-angle (and that plus the tie margin).
+/// An edge's start vertex, unit outward normal and pseudo-angle (and that plus the tie
+/// margin). The edge vector itself is not kept: the pair computation takes it from the merged
+/// vertices.
 #[derive(Clone, Copy, Debug)]
-struct Edge {
-    vec: V2,
+pub(crate) struct Edge {
+    start: V2,
     normal: V2,
     angle: f64,
     angle_hi: f64,
 }
 
 impl Edge {
-    fn new(vec: V2, normal: V2, angle: f64) -> Self {
+    fn new(start: V2, normal: V2, angle: f64) -> Self {
         Self {
-            vec,
+            start,
             normal,
             angle,
             angle_hi: angle + PARALLEL_ANGLE,
         }
     }
 
-    /// Ends each agent's edge list: zero edge, angle past every other.
-    const SENTINEL: Self = Self {
-        vec: V2::new(0.0, 0.0),
-        normal: V2::new(0.0, 0.0),
-        angle: SENTINEL_ANGLE,
-        angle_hi: SENTINEL_ANGLE,
-    };
+    /// Ends each agent's edge list at the next vertex: zero normal, angle past every other.
+    fn sentinel(start: V2) -> Self {
+        Self {
+            start,
+            normal: V2::zeros(),
+            angle: SENTINEL_ANGLE,
+            angle_hi: SENTINEL_ANGLE,
+        }
+    }
 }
 
-/// One agent's prepared polygon.
+/// One agent's prepared polygon: its stored edges and the sentinel.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Prepared<'a> {
-    pts: &'a [V2],
     edges: &'a [Edge],
+    symmetric: bool,
 }
 
 impl Shapes {
-    /// Empties the arrays; every polygon pushed next must have `sides` vertices.
-    pub(crate) fn reset(&mut self, sides: usize) {
+    /// Empties the array; every polygon pushed next must have `sides` vertices and, with
+    /// `symmetric` (which needs an even `sides`), be its own reflection bit for bit.
+    pub(crate) fn reset(&mut self, sides: usize, symmetric: bool) {
+        debug_assert!(!symmetric || sides % 2 == 0);
         self.sides = sides;
-        self.pts.clear();
+        self.symmetric = symmetric && sides % 2 == 0;
         self.edges.clear();
     }
 
-    /// Appends polygon `k` of `shapes` reflected through the origin (what [`Shapes::push`] of
-    /// the negated vertices gives, without its square roots and divisions: the lowest vertex of
-    /// the reflection is the reflected highest one, and every edge turns by half a circle).
+    /// Edges stored per polygon (without the sentinel).
+    fn stored(&self) -> usize {
+        if self.symmetric {
+            self.sides / 2
+        } else {
+            self.sides
+        }
+    }
+
+    /// Appends polygon `k` of `shapes` (not symmetric ones, which are their own reflection)
+    /// reflected through the origin: what [`Shapes::push`] of the negated vertices gives,
+    /// without its square roots and divisions (the lowest vertex of the reflection is the
+    /// reflected highest one, and every edge turns by half a circle).
     pub(crate) fn push_negated(&mut self, shapes: &Shapes, k: usize) {
-        let src = shapes.get(k);
-        let n = src.pts.len() - 1;
+        debug_assert!(!shapes.symmetric && !self.symmetric);
+        let src = shapes.get(k).edges;
+        let n = src.len() - 1;
         debug_assert_eq!(n, self.sides);
         // Highest vertex: largest y, then largest x (the reflection's smallest y, smallest x).
         let mut top = 0;
-        for (i, q) in src.pts[..n].iter().enumerate() {
-            let t = src.pts[top];
+        for (i, e) in src[..n].iter().enumerate() {
+            let (q, t) = (e.start, src[top].start);
             if q.y > t.y || (q.y == t.y && q.x > t.x) {
                 top = i;
             }
         }
-        for i in (top..n).chain(0..=top) {
-            self.pts.push(-src.pts[i]);
-        }
         for i in (top..n).chain(0..top) {
-            let e = src.edges[i];
+            let e = src[i];
             let angle = if e.angle >= 2.0 {
                 e.angle - 2.0
             } else {
                 e.angle + 2.0
             };
-            self.edges.push(Edge::new(-e.vec, -e.normal, angle));
+            self.edges.push(Edge::new(-e.start, -e.normal, angle));
         }
-        self.edges.push(Edge::SENTINEL);
+        self.edges.push(Edge::sentinel(-src[top].start));
     }
 
     /// Appends a counter-clockwise polygon of `sides` vertices.
     pub(crate) fn push(&mut self, poly: &[V2]) {
         debug_assert_eq!(poly.len(), self.sides);
         let start = lowest_vertex(poly);
-        let first = self.pts.len();
-        self.pts.extend_from_slice(&poly[start..]);
-        self.pts.extend_from_slice(&poly[..start]);
-        self.pts.push(poly[start]);
-        for k in first..first + poly.len() {
-            let vec = self.pts[k + 1] - self.pts[k];
+        let n = poly.len();
+        let count = self.stored();
+        for k in 0..count {
+            let (from, to) = (poly[(start + k) % n], poly[(start + k + 1) % n]);
+            let vec = to - from;
             // Never NaN (an overflowing polygon): the merge's walks then only both advance on
             // a tie, and never past their sentinels.
             let angle = pseudo_angle(vec);
             let angle = if angle.is_nan() { 0.0 } else { angle };
             self.edges
-                .push(Edge::new(vec, unit(right_normal(vec)), angle));
+                .push(Edge::new(from, unit(right_normal(vec)), angle));
         }
-        self.edges.push(Edge::SENTINEL);
+        self.edges.push(Edge::sentinel(poly[(start + count) % n]));
     }
 
     #[inline]
     pub(crate) fn get(&self, k: usize) -> Prepared<'_> {
-        let n = self.sides + 1;
+        let n = self.stored() + 1;
         Prepared {
-            pts: &self.pts[k * n..(k + 1) * n],
             edges: &self.edges[k * n..(k + 1) * n],
+            symmetric: self.symmetric,
         }
     }
 }
 
-/// The merged polygon of one pair: vertex `k` (without the offset `p`), the edge leaving it and
-/// that edge's unit outward normal. Reused between pairs.
+/// The merged polygon of one pair: vertex `k` (without the offset `p`; vertex `len` repeats
+/// vertex 0, so edge `k` runs from `v[k]` to `v[k + 1]`), the unit outward normal of edge `k`,
+/// and `h[k] = (p + v[k]) · n[k]`, the signed offset of its line from the origin (negative: the
+/// edge faces the origin); `hm[k]` is that of edge k's reflection (symmetric shapes). Reused
+/// between pairs.
 #[derive(Clone, Debug)]
 pub(crate) struct PairScratch {
-    v: [V2; MAX_VERTICES],
-    e: [V2; MAX_VERTICES],
+    v: [V2; MAX_VERTICES + 1],
     n: [V2; MAX_VERTICES],
+    h: [f64; MAX_VERTICES],
+    hm: [f64; MAX_VERTICES],
 }
 
 impl Default for PairScratch {
     fn default() -> Self {
         Self {
-            v: [V2::zeros(); MAX_VERTICES],
-            e: [V2::zeros(); MAX_VERTICES],
+            v: [V2::zeros(); MAX_VERTICES + 1],
             n: [V2::zeros(); MAX_VERTICES],
+            h: [0.0; MAX_VERTICES],
+            hm: [0.0; MAX_VERTICES],
         }
     }
 }
 
 /// Avoidance for relative position `p = pos_b - pos_a` and relative velocity `w = v_a - v_b`,
-/// from B's polygon and A's negated polygon (so the obstacle is `P = p + B ⊕ (-A)`): the
-/// truncated cone for horizon `tau` when the shapes are apart, `P / dt` when they overlap (see
-/// [`crate::velocity_obstacle`]).
+/// from B's polygon and A's negated polygon (so the obstacle is `P = p + B ⊕ (-A)`; for
+/// symmetric shapes A's own polygon is its negation): the truncated cone for horizon `tau`
+/// when the shapes are apart, `P / dt` when they overlap (see [`crate::velocity_obstacle`]).
 ///
-/// Swapping the agents negates `p`, `w` and every vertex, normal and edge, so each number of
-/// the computation is negated or unchanged, bit for bit; only the merge starts elsewhere. The
-/// result is therefore the exact negation, except that of two features at exactly the same
-/// distance the other may be named: a caller may reuse it for the reverse pair.
+/// Swapping the agents negates `p`, `w` and the obstacle, so the reverse pair's avoidance is
+/// this one negated, up to rounding (of two parallel edges the merged one takes B's normal,
+/// and of two features at exactly the same distance either may be named): a caller may reuse
+/// it for the reverse pair.
 #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN must advance both walks, see below
 pub(crate) fn pair_avoidance(
     p: V2,
@@ -187,39 +209,53 @@ pub(crate) fn pair_avoidance(
     dt: f64,
     out: &mut PairScratch,
 ) -> Avoidance {
-    let (n, m) = (b.edges.len() - 1, neg_a.edges.len() - 1);
-    if n == 0 || m == 0 || b.pts.len() <= n || neg_a.pts.len() <= m {
+    debug_assert_eq!(b.symmetric, neg_a.symmetric);
+    let (b, neg_a, mirror) = (b.edges, neg_a.edges, b.symmetric);
+    let (n, m) = (b.len().saturating_sub(1), neg_a.len().saturating_sub(1));
+    if n == 0 || m == 0 {
         return Avoidance {
             u: V2::zeros(),
             normal: V2::zeros(),
         };
     }
     // Merge the edges in angle order (the smaller pseudo-angle first; both when within
-    // PARALLEL_ANGLE), recording whether each faces the origin (lies on the
-    // origin's inner side): bit k of `facing`, the same test as `velocity_obstacle`'s. An
-    // exhausted walk rests on its sentinel, whose angle is past every other.
+    // PARALLEL_ANGLE), recording whether each faces the origin (the origin lies on its outer
+    // side: h < 0) in bit k of `facing`. An exhausted walk rests on its sentinel, whose angle
+    // is past every other. For symmetric shapes this is the first half of the sum, and edge
+    // k's reflection (vertex -v, normal -n, offset `hm`) is edge `k + half`.
     let (mut i, mut j, mut k) = (0usize, 0usize, 0usize);
-    let mut facing = 0u64;
+    let (mut facing, mut facing_m) = (0u64, 0u64);
     // Every step advances at least one walk (two angles cannot each exceed the other by the
     // margin), and neither passes its sentinel before the other's is reached: n + m steps at
     // most, within MAX_VERTICES since each polygon has at most MAX_SIDES.
     while i + j < n + m && k < MAX_VERTICES {
-        let (eb, ea) = (b.edges[i], neg_a.edges[j]);
+        let (eb, ea) = (b[i], neg_a[j]);
         let adv_b = !(ea.angle_hi < eb.angle);
         let adv_a = !(eb.angle_hi < ea.angle);
-        let v = b.pts[i] + neg_a.pts[j];
-        let zero = V2::zeros();
-        let e = (if adv_b { eb.vec } else { zero }) + (if adv_a { ea.vec } else { zero });
-        // Arithmetic, not a branch: which walk advances is data-dependent.
-        let take_b = f64::from(u8::from(adv_b));
-        let normal = eb.normal * take_b + ea.normal * (1.0 - take_b);
-        facing |= u64::from(cross(e, -(p + v)) < 0.0) << k;
-        (out.v[k], out.e[k], out.n[k]) = (v, e, normal);
+        let v = eb.start + ea.start;
+        // Parallel edges merge into one with B's normal.
+        let normal = if adv_b { eb.normal } else { ea.normal };
+        let (along_p, along_v) = (p.dot(&normal), v.dot(&normal));
+        let (h, hm) = (along_p + along_v, along_v - along_p);
+        facing |= u64::from(h < 0.0) << k;
+        facing_m |= u64::from(hm < 0.0) << k;
+        (out.v[k], out.n[k], out.h[k], out.hm[k]) = (v, normal, h, hm);
         i += usize::from(adv_b);
         j += usize::from(adv_a);
         k += 1;
     }
-    let len = k;
+    let len = if mirror && 2 * k <= MAX_VERTICES {
+        let half = k;
+        for t in 0..half {
+            (out.v[half + t], out.n[half + t]) = (-out.v[t], -out.n[t]);
+            out.h[half + t] = out.hm[t];
+        }
+        facing |= facing_m << half;
+        2 * half
+    } else {
+        k
+    };
+    out.v[len] = out.v[0];
     // The facing edges of a convex polygon are one contiguous run (none when the origin is
     // inside); it starts at a facing edge whose predecessor does not face.
     let first = if len >= 3 {
@@ -229,18 +265,19 @@ pub(crate) fn pair_avoidance(
     } else {
         None
     };
-    let next = |k: usize| if k + 1 == len { 0 } else { k + 1 };
     match first {
         Some(first) => {
             // Apart: the cap is the facing run of P / tau, the legs the rays from the origin
             // through its end vertices.
             let inv_tau = 1.0 / tau;
-            let mut last = first;
-            let mut count = 0;
-            while facing >> last & 1 == 1 && count < len {
-                last = next(last);
-                count += 1;
-            }
+            // The run ends where the facing bits (rotated to start at `first`) first stop.
+            let rotated = (facing >> first | facing << (len - first)) & (u64::MAX >> (64 - len));
+            let count = (!rotated).trailing_zeros().min(len as u32) as usize;
+            let last = if first + count >= len {
+                first + count - len
+            } else {
+                first + count
+            };
             let start = p + out.v[first];
             let end = p + out.v[last];
             let legs = [
@@ -269,27 +306,25 @@ fn nearest(
     legs: &[(V2, V2, V2)],
 ) -> Avoidance {
     // Signed distance of `w` outside each feature's supporting line. Inside the region (all
-    // <= 0) the nearest boundary point lies on the nearest line. (Recomputed below rather
-    // than stored: an array for them cost a zero-fill per pair.)
-    let side = |k: usize| (w - (p + poly.v[k]) * scale).dot(&poly.n[k]);
+    // <= 0) the nearest boundary point lies on the nearest line. (Recomputed below in the
+    // rarer outside case rather than stored.)
+    let side = |k: usize| w.dot(&poly.n[k]) - scale * poly.h[k];
     let next = |k: usize| if k + 1 == len { 0 } else { k + 1 };
     let mut best_sd = f64::NEG_INFINITY;
     let mut best_normal = V2::zeros();
+    // Selects, not branches: which feature is nearest is data-dependent.
+    let mut keep = |d: f64, normal: V2| {
+        let better = d > best_sd;
+        best_sd = if better { d } else { best_sd };
+        best_normal = if better { normal } else { best_normal };
+    };
     let mut k = first;
     for _ in 0..count {
-        let d = side(k);
-        if d > best_sd {
-            best_sd = d;
-            best_normal = poly.n[k];
-        }
+        keep(side(k), poly.n[k]);
         k = next(k);
     }
     for &(start, _, normal) in legs {
-        let d = (w - start).dot(&normal);
-        if d > best_sd {
-            best_sd = d;
-            best_normal = normal;
-        }
+        keep((w - start).dot(&normal), normal);
     }
     if best_sd == f64::NEG_INFINITY {
         return Avoidance {
@@ -314,7 +349,7 @@ fn nearest(
     for _ in 0..count {
         if side(k) > margin {
             let start = (p + poly.v[k]) * scale;
-            let edge = poly.e[k] * scale;
+            let edge = (poly.v[k + 1] - poly.v[k]) * scale;
             let e2 = edge.norm_squared();
             let t = if e2 > 0.0 {
                 ((w - start).dot(&edge) / e2).clamp(0.0, 1.0)
@@ -374,32 +409,37 @@ mod tests {
         let a = Ellipse::new(la, wa, unit_v(ha)).polygon(sides);
         let b = Ellipse::new(lb, wb, unit_v(hb)).polygon(sides);
         let reference = avoidance(p, &minkowski_sum(&b, &a.negated()), w, tau, dt);
-        let (mut sb, mut sa) = (Shapes::default(), Shapes::default());
-        sb.reset(sides);
-        sa.reset(sides);
-        sb.push(b.points());
-        sa.push(a.negated().points());
-        let fast = pair_avoidance(
-            p,
-            w,
-            sb.get(0),
-            sa.get(0),
-            tau,
-            dt,
-            &mut PairScratch::default(),
-        );
-        prop_assert!(
-            (fast.u - reference.u).norm() <= 1e-9 * (1.0 + reference.u.norm()),
-            "u {:?} vs {:?}",
-            fast.u,
-            reference.u
-        );
-        prop_assert!(
-            (fast.normal - reference.normal).norm() <= 1e-9,
-            "normal {:?} vs {:?}",
-            fast.normal,
-            reference.normal
-        );
+        // Even polygons both ways: halves (as the crowd step does) and whole.
+        for symmetric in [false, true].into_iter().filter(|&s| !s || sides % 2 == 0) {
+            let (mut sb, mut sa) = (Shapes::default(), Shapes::default());
+            sb.reset(sides, symmetric);
+            sa.reset(sides, symmetric);
+            sb.push(b.points());
+            sa.push(a.negated().points());
+            let fast = pair_avoidance(
+                p,
+                w,
+                sb.get(0),
+                sa.get(0),
+                tau,
+                dt,
+                &mut PairScratch::default(),
+            );
+            prop_assert!(
+                (fast.u - reference.u).norm() <= 1e-9 * (1.0 + reference.u.norm()),
+                "symmetric {} u {:?} vs {:?}",
+                symmetric,
+                fast.u,
+                reference.u
+            );
+            prop_assert!(
+                (fast.normal - reference.normal).norm() <= 1e-9,
+                "symmetric {} normal {:?} vs {:?}",
+                symmetric,
+                fast.normal,
+                reference.normal
+            );
+        }
         Ok(())
     }
 
@@ -411,17 +451,40 @@ mod tests {
                 let h = V2::new((t as f64 * 0.37).cos(), (t as f64 * 0.37).sin());
                 let poly = Ellipse::new(10.0 + t as f64, 30.0 - 0.5 * t as f64, h).polygon(sides);
                 let mut shapes = Shapes::default();
-                shapes.reset(sides);
+                shapes.reset(sides, false);
                 shapes.push(poly.points());
                 let (mut fast, mut slow) = (Shapes::default(), Shapes::default());
-                fast.reset(sides);
-                slow.reset(sides);
+                fast.reset(sides, false);
+                slow.reset(sides, false);
                 fast.push_negated(&shapes, 0);
                 slow.push(poly.negated().points());
-                assert_eq!(fast.pts, slow.pts, "sides {sides} t {t}");
                 for (f, s) in fast.edges.iter().zip(&slow.edges) {
-                    assert_eq!((f.vec, f.normal), (s.vec, s.normal), "sides {sides} t {t}");
+                    assert_eq!(
+                        (f.start, f.normal),
+                        (s.start, s.normal),
+                        "sides {sides} t {t}"
+                    );
                     assert!((f.angle - s.angle).abs() < 1e-12, "sides {sides} t {t}");
+                }
+                if sides % 2 == 0 {
+                    // A symmetric polygon prepares to exactly its own negation.
+                    let mut half = Shapes::default();
+                    half.reset(sides, true);
+                    half.push(poly.points());
+                    assert_eq!(half.edges.len(), sides / 2 + 1);
+                    let top = half.edges[sides / 2].start;
+                    assert_eq!(top, -half.edges[0].start, "sides {sides} t {t}");
+                    for (h, f) in half.edges[..sides / 2].iter().zip(&shapes.edges) {
+                        assert_eq!((h.start, h.normal, h.angle), (f.start, f.normal, f.angle));
+                        assert!(h.angle < 2.0, "sides {sides} t {t}");
+                    }
+                    for (f, s) in shapes.edges.iter().zip(&slow.edges) {
+                        assert_eq!(
+                            (f.start, f.normal, f.angle),
+                            (s.start, s.normal, s.angle),
+                            "sides {sides} t {t}"
+                        );
+                    }
                 }
             }
         }

@@ -157,14 +157,17 @@ impl Orca {
     /// and prepares it and its negation for the pair computations.
     fn prepare_shapes(&mut self, agents: &[Agent]) {
         let sides = self.unit.sides();
-        self.shapes.reset(sides);
-        self.negated_shapes.reset(sides);
+        let symmetric = self.unit.is_symmetric();
+        self.shapes.reset(sides, symmetric);
+        self.negated_shapes.reset(sides, false);
         for (k, a) in agents.iter().enumerate() {
             let e = Ellipse::new(a.l, a.w, heading(a.vel, a.pref_vel));
             self.polygon.clear();
             e.for_each_vertex(&self.unit, |q| self.polygon.push(q));
             self.shapes.push(&self.polygon);
-            self.negated_shapes.push_negated(&self.shapes, k);
+            if !self.unit.is_symmetric() {
+                self.negated_shapes.push_negated(&self.shapes, k);
+            }
         }
     }
 }
@@ -274,7 +277,12 @@ impl MotionModel for Orca {
                                 rel_pos,
                                 rel_vel,
                                 self.shapes.get(j),
-                                self.negated_shapes.get(i),
+                                if self.unit.is_symmetric() {
+                                    // Each polygon is its own reflection.
+                                    self.shapes.get(i)
+                                } else {
+                                    self.negated_shapes.get(i)
+                                },
                                 p.time_horizon,
                                 dt,
                                 &mut self.pair_scratch,
