@@ -9,6 +9,7 @@
 //! social forces and circular RVO implement it too, for the method's ablation.
 
 pub mod agent;
+mod cull;
 pub mod geometry;
 pub mod lp;
 pub mod minkowski;

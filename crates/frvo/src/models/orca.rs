@@ -2,6 +2,7 @@
 //! classic RVO/ORCA baseline. Both share the polygon velocity obstacles, the grid and the LP.
 
 use crate::agent::Agent;
+use crate::cull::{self, Body, Bound, Limits, Motion, Pair};
 use crate::geometry::{heading, is_finite, Ellipse, UnitPolygon, MIN_SIZE, V2};
 use crate::lp::{self, Line};
 use crate::model::{MotionKind, MotionModel, MotionParams};
@@ -17,6 +18,16 @@ pub enum Footprint {
     /// Circle of diameter `max(l, w)`, as circular RVO models a pedestrian (exact disc
     /// velocity obstacles, no polygon).
     Circle,
+}
+
+/// What an agent leaves in a neighbour slot for the reverse pair (FRVO).
+#[derive(Clone, Copy, Debug)]
+enum Slot {
+    /// The pair's avoidance.
+    Exact(Avoidance),
+    /// The half-plane provably contains the speed disc and was skipped: the cull test's
+    /// bound, from which the other agent decides for itself.
+    Culled(Bound),
 }
 
 /// ORCA-style crowd stepper over convex polygon footprints.
@@ -35,8 +46,11 @@ pub struct Orca {
     /// Neighbours of agent `i`, nearest first: `nbr[nbr_start[i]..nbr_start[i + 1]]`.
     nbr_start: Vec<u32>,
     nbr: Vec<u32>,
-    /// Per neighbour slot (FRVO): the pair's avoidance, for the reverse pair.
-    avoid: Vec<Avoidance>,
+    /// Each agent's ellipse for the cull test (FRVO).
+    bodies: Vec<Body>,
+    limits: Limits,
+    /// Per neighbour slot (FRVO): what the reverse pair needs.
+    avoid: Vec<Slot>,
     /// The neighbour lists transposed to earlier agents: agent `i`'s entries
     /// `rev[rev_start[i]..rev_start[i + 1]]` are `(j, t)` with `j < i` and `nbr[t] == i`, so the
     /// reverse pair is found without searching `j`'s list.
@@ -67,6 +81,8 @@ impl Orca {
             shapes: Shapes::default(),
             negated_shapes: Shapes::default(),
             radii: Vec::new(),
+            bodies: Vec::new(),
+            limits: Limits::new(params.time_horizon, params.max_speed, params.polygon_sides),
             nbr_start: Vec::new(),
             nbr: Vec::new(),
             avoid: Vec::new(),
@@ -154,20 +170,81 @@ impl Orca {
     }
 
     /// Builds every agent's polygon once per step (no trigonometry: the unit polygon is cached)
-    /// and prepares it and its negation for the pair computations.
+    /// and prepares it and its negation for the pair computations, and its ellipse for the
+    /// cull test.
     fn prepare_shapes(&mut self, agents: &[Agent]) {
         let sides = self.unit.sides();
         let symmetric = self.unit.is_symmetric();
         self.shapes.reset(sides, symmetric);
         self.negated_shapes.reset(sides, false);
+        self.bodies.clear();
         for (k, a) in agents.iter().enumerate() {
             let e = Ellipse::new(a.l, a.w, heading(a.vel, a.pref_vel));
+            self.bodies.push(Body::new(&e, &self.limits));
             self.polygon.clear();
             e.for_each_vertex(&self.unit, |q| self.polygon.push(q));
             self.shapes.push(&self.polygon);
             if !self.unit.is_symmetric() {
                 self.negated_shapes.push_negated(&self.shapes, k);
             }
+        }
+    }
+
+    /// Agent `i`'s avoidance of neighbour `j` from their polygons, or `None` when its
+    /// half-plane provably contains the speed disc (see [`crate::cull`]). Records in `avoid`
+    /// what the reverse pair needs.
+    fn polygon_avoidance(
+        &mut self,
+        i: usize,
+        j: usize,
+        a: Motion,
+        p: V2,
+        w: V2,
+        dt: f64,
+    ) -> Option<Avoidance> {
+        // What agent j left for the pair, if it is done and lists i (else `slot_in[j]` is
+        // u32::MAX, past the end).
+        let reverse = self.avoid.get(self.slot_in[j] as usize);
+        let slot = if let Some(Slot::Exact(r)) = reverse {
+            // The negation of the reverse pair's (see `pair_avoidance`).
+            Slot::Exact(Avoidance {
+                u: -r.u,
+                normal: -r.normal,
+            })
+        } else {
+            let pair = Pair {
+                p,
+                w,
+                a: &self.bodies[i],
+                b: &self.bodies[j],
+            };
+            let culled = match reverse {
+                // Agent j skipped it: whether i may too depends on i's own velocity.
+                Some(Slot::Culled(bound)) => {
+                    let bound = bound.reversed();
+                    cull::contains_disc(&pair, &bound, a, &self.limits).then_some(bound)
+                }
+                _ => cull::cull(&pair, a, &self.limits),
+            };
+            match culled {
+                Some(bound) => Slot::Culled(bound),
+                None => {
+                    let b = self.shapes.get(j);
+                    let neg_a = if self.unit.is_symmetric() {
+                        self.shapes.get(i) // each polygon is its own reflection
+                    } else {
+                        self.negated_shapes.get(i)
+                    };
+                    let tau = self.params.time_horizon;
+                    let scratch = &mut self.pair_scratch;
+                    Slot::Exact(pair_avoidance(p, w, b, neg_a, tau, dt, scratch))
+                }
+            }
+        };
+        self.avoid.push(slot);
+        match slot {
+            Slot::Exact(avoid) => Some(avoid),
+            Slot::Culled(_) => None,
         }
     }
 }
@@ -241,6 +318,7 @@ impl MotionModel for Orca {
         let mut out = Vec::with_capacity(agents.len());
         for (i, a) in agents.iter().enumerate() {
             let pref = finite_pref(a);
+            let motion = Motion::new(a.vel);
             let slots = self.nbr_start[i] as usize..self.nbr_start[i + 1] as usize;
             if !self.valid[i] {
                 out.push(pref);
@@ -263,33 +341,10 @@ impl MotionModel for Orca {
                 }
                 let avoid = match self.footprint {
                     Footprint::Ellipse => {
-                        // Agent j, if already done and i among its neighbours, computed the
-                        // reverse pair: that is the negation (see `pair_avoidance`).
-                        let t = self.slot_in[j];
-                        let avoid = if t != u32::MAX {
-                            let r = self.avoid[t as usize];
-                            Avoidance {
-                                u: -r.u,
-                                normal: -r.normal,
-                            }
-                        } else {
-                            pair_avoidance(
-                                rel_pos,
-                                rel_vel,
-                                self.shapes.get(j),
-                                if self.unit.is_symmetric() {
-                                    // Each polygon is its own reflection.
-                                    self.shapes.get(i)
-                                } else {
-                                    self.negated_shapes.get(i)
-                                },
-                                p.time_horizon,
-                                dt,
-                                &mut self.pair_scratch,
-                            )
-                        };
-                        self.avoid.push(avoid);
-                        avoid
+                        match self.polygon_avoidance(i, j, motion, rel_pos, rel_vel, dt) {
+                            Some(avoid) => avoid,
+                            None => continue, // never binds: the LP is the same without it
+                        }
                     }
                     Footprint::Circle => {
                         let r = self.radii[i] + self.radii[j];
