@@ -136,28 +136,30 @@ impl Orca {
         let n = self.positions.len();
         self.rev_start.clear();
         self.rev_start.resize(n + 1, 0);
+        // Whether a listed neighbour comes later is data-dependent: counted and written
+        // without branches (an earlier one is written to a spare last entry, then dropped).
         for j in 0..n {
             for &i in &self.nbr[self.nbr_start[j] as usize..self.nbr_start[j + 1] as usize] {
-                if (j as u32) < i {
-                    self.rev_start[i as usize + 1] += 1;
-                }
+                self.rev_start[i as usize + 1] += u32::from((j as u32) < i);
             }
         }
         for i in 0..n {
             self.rev_start[i + 1] += self.rev_start[i];
         }
+        let total = self.rev_start[n] as usize;
         self.rev.clear();
-        self.rev.resize(self.rev_start[n] as usize, (0, 0));
+        self.rev.resize(total + 1, (0, 0));
         let mut fill = self.rev_start[..n].to_vec();
         for j in 0..n {
             for t in self.nbr_start[j]..self.nbr_start[j + 1] {
                 let i = self.nbr[t as usize] as usize;
-                if j < i {
-                    self.rev[fill[i] as usize] = (j as u32, t);
-                    fill[i] += 1;
-                }
+                let later = j < i;
+                let at = if later { fill[i] as usize } else { total };
+                self.rev[at] = (j as u32, t);
+                fill[i] += u32::from(later);
             }
         }
+        self.rev.truncate(total);
         self.slot_in.clear();
         self.slot_in.resize(n, u32::MAX);
     }
