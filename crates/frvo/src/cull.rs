@@ -72,9 +72,15 @@ impl Body {
     /// Support function of the ellipse: `max over x in E of m·x`.
     #[inline]
     fn support(&self, m: V2) -> f64 {
+        self.support_squared(m).sqrt()
+    }
+
+    /// The support's square (no square root).
+    #[inline]
+    fn support_squared(&self, m: V2) -> f64 {
         let along = self.a * m.dot(&self.heading);
         let across = self.b * cross(self.heading, m);
-        (along * along + across * across).sqrt()
+        along * along + across * across
     }
 }
 
@@ -233,9 +239,27 @@ pub(crate) fn contains_disc(pair: &Pair, bound: &Bound, a: Motion, limits: &Limi
 /// Whether the unit `m` is provably outside `N = {m : f_lo(m) >= gap}`.
 #[inline]
 fn outside_arc(pair: &Pair, bound: &Bound, m: V2, limits: &Limits) -> bool {
-    let lo = m.dot(&pair.p) + pair.ellipses(m);
+    // With lo = m·p + e(m): lo > MARGIN size (infinite support), or m·w - lo / tau below the
+    // gap. Both say lo > t for a threshold t, and e(m) is a sum of two square roots: the
+    // comparison is made on squares (square roots are slow, and these calls are hot).
     let size = pair.p.x.abs() + pair.p.y.abs() + pair.a.reach + pair.b.reach;
-    lo > MARGIN * size || m.dot(&pair.w) - lo * limits.inv_tau < bound.gap - bound.tol
+    let t = (MARGIN * size).min((m.dot(&pair.w) - bound.gap + bound.tol) / limits.inv_tau);
+    sqrt_sum_exceeds(
+        pair.a.support_squared(m),
+        pair.b.support_squared(m),
+        t - m.dot(&pair.p),
+    )
+}
+
+/// `sqrt(a2) + sqrt(b2) > t`, without square roots; false when anything is NaN.
+#[inline]
+fn sqrt_sum_exceeds(a2: f64, b2: f64, t: f64) -> bool {
+    if !(t >= 0.0) {
+        return t < 0.0;
+    }
+    // a2 + b2 + 2 sqrt(a2 b2) > t^2.
+    let r = t * t - a2 - b2;
+    r < 0.0 || 4.0 * a2 * b2 > r * r
 }
 
 #[cfg(test)]
@@ -388,12 +412,35 @@ mod tests {
             prop_assert_eq!(check(&c, cull).err(), None, "{:?}", c);
         }
 
+        /// The square-free comparison agrees with the square roots wherever they differ by
+        /// more than rounding.
+        #[test]
+        fn sqrt_sum_comparison(a in 0.0f64..1e4, b in 0.0f64..1e4, t in -10.0f64..300.0) {
+            let (a2, b2) = (a * a, b * b);
+            let sum = a2.sqrt() + b2.sqrt();
+            if (sum - t).abs() > 1e-9 * (1.0 + sum) {
+                prop_assert_eq!(sqrt_sum_exceeds(a2, b2, t), sum > t);
+            }
+        }
+
         /// The same with the speed limit at the edge of containment.
         #[test]
         fn sound_at_the_limit(c in case(), offset in -1e-3f64..1e-3) {
             let c = at_the_limit(c, offset);
             prop_assert_eq!(check(&c, cull).err(), None, "{:?}", c);
         }
+    }
+
+    #[test]
+    fn sqrt_sum_comparison_edges() {
+        assert!(sqrt_sum_exceeds(0.0, 0.0, -1.0));
+        assert!(!sqrt_sum_exceeds(0.0, 0.0, 0.0));
+        assert!(sqrt_sum_exceeds(9.0, 16.0, 6.999));
+        assert!(!sqrt_sum_exceeds(9.0, 16.0, 7.001));
+        assert!(!sqrt_sum_exceeds(f64::NAN, 1.0, 0.5));
+        assert!(!sqrt_sum_exceeds(1.0, 1.0, f64::NAN));
+        // Overflow gives no answer, which turns the pair down (always safe).
+        assert!(!sqrt_sum_exceeds(f64::INFINITY, 1.0, 1e300));
     }
 
     /// Runs `test` on `n` cases of the strategy: (culled agents, failures).
