@@ -186,7 +186,7 @@ impl Orca {
             self.polygon.clear();
             e.for_each_vertex(&self.unit, |q| self.polygon.push(q));
             self.shapes.push(&self.polygon);
-            if !self.unit.is_symmetric() {
+            if !symmetric {
                 self.negated_shapes.push_negated(&self.shapes, k);
             }
         }
