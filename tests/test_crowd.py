@@ -76,6 +76,7 @@ def test_shapes_and_dtypes() -> None:
         ({"time_horizon": -1.0}, ParameterError),
         ({"polygon_sides": 2}, ParameterError),
         ({"max_speed": float("inf")}, ParameterError),
+        ({"threads": -1}, OverflowError),
     ],
 )
 def test_bad_input_raises(kwargs: dict[str, Any], exc: type[Exception]) -> None:
@@ -92,6 +93,23 @@ def test_bad_input_raises(kwargs: dict[str, Any], exc: type[Exception]) -> None:
         _core.step_crowd(
             args["positions"], args["velocities"], args["pref_velocities"], args["axes"], **options
         )
+
+
+@pytest.mark.parametrize("motion", ["frvo", "rvo"])
+def test_threads_give_the_same_velocities(motion: str) -> None:
+    # 1,500 agents x 10 neighbours: large enough for the step to spread over threads.
+    rng = np.random.default_rng(3)
+    n = 1500
+    pos = rng.uniform(0.0, 25.0 * np.sqrt(n), size=(n, 2))
+    vel, pref = rng.uniform(-2.0, 2.0, size=(2, n, 2))
+    axes = np.column_stack([rng.uniform(10, 30, n), rng.uniform(20, 50, n)])
+    one, _ = _core.step_crowd(pos, vel, pref, axes, motion=motion, max_speed=4.0, threads=1)
+    for threads in (0, 2, 3):
+        many, _ = _core.step_crowd(
+            pos, vel, pref, axes, motion=motion, max_speed=4.0, threads=threads
+        )
+        np.testing.assert_array_equal(one, many)
+    assert not np.allclose(one, vel)  # the crowd constrains its agents
 
 
 def test_constant_velocity_returns_preferred() -> None:

@@ -23,13 +23,16 @@ def step_crowd(
     sf_relaxation_time: float | None = None,
     sf_strength: float | None = None,
     sf_range: float | None = None,
+    threads: int | None = None,
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """One step of a crowd motion model ("frvo", "rvo", "sf" or "cv") on [N, 2] arrays.
 
     axes[:, 0] is the ellipse extent along the direction of motion (l), axes[:, 1] across it (w),
     in pixels; velocities in pixels per frame. Parameters left as None take the Rust defaults
     (neighbor_radius 150, max_neighbors 10, time_horizon 5, max_speed 50, polygon_sides 8,
-    sf_relaxation_time 2, sf_strength 1, sf_range 10). Returns (new_velocities, new_positions)
+    sf_relaxation_time 2, sf_strength 1, sf_range 10, threads 0). threads: 0 spreads a large
+    crowd's step over every core (rayon's pool; RAYON_NUM_THREADS caps it), 1 keeps it on the
+    calling thread, n uses n threads; the velocities are the same whatever the number. Returns (new_velocities, new_positions)
     with new_positions = positions + dt * new_velocities. Raises ValueError for bad shapes and
     densepeds.errors.ParameterError (a ValueError) for bad parameters. Releases the GIL.
     """

@@ -146,6 +146,7 @@ pub const PARAM_NAMES: &[&str] = &[
     "time_horizon",
     "max_speed",
     "polygon_sides",
+    "threads",
 ];
 
 fn bad(name: &str, why: &str) -> TrackError {
@@ -182,7 +183,7 @@ impl TrackerParams {
     pub fn kind_of(name: &str) -> Option<ParamKind> {
         Some(match name {
             "n_init" | "max_age" | "gallery_size" | "pref_window" | "output_lost"
-            | "low_max_age" | "max_neighbors" | "polygon_sides" => ParamKind::Int,
+            | "low_max_age" | "max_neighbors" | "polygon_sides" | "threads" => ParamKind::Int,
             "second_pass" | "recovery" => ParamKind::Bool,
             n if PARAM_NAMES.contains(&n) => ParamKind::Float,
             _ => return None,
@@ -237,6 +238,7 @@ impl TrackerParams {
             "time_horizon" => p.motion_params.time_horizon = f,
             "max_speed" => p.motion_params.max_speed = f,
             "polygon_sides" => p.motion_params.polygon_sides = to_usize(name, i)?,
+            "threads" => p.motion_params.threads = to_usize(name, i)?,
             _ => unreachable!("kind_of accepted {name}"),
         }
         Ok(())
@@ -272,6 +274,7 @@ impl TrackerParams {
             "time_horizon" => Float(p.motion_params.time_horizon),
             "max_speed" => Float(p.motion_params.max_speed),
             "polygon_sides" => Int(p.motion_params.polygon_sides as i64),
+            "threads" => Int(p.motion_params.threads as i64),
             _ => return None,
         })
     }

@@ -56,6 +56,7 @@ type Points<'py> = Bound<'py, PyArray2<f64>>;
     positions, velocities, pref_velocities, axes, *, motion = "frvo", dt = 1.0,
     neighbor_radius = None, max_neighbors = None, time_horizon = None, max_speed = None,
     polygon_sides = None, sf_relaxation_time = None, sf_strength = None, sf_range = None,
+    threads = None,
 ))]
 #[allow(clippy::too_many_arguments)]
 fn step_crowd<'py>(
@@ -74,6 +75,7 @@ fn step_crowd<'py>(
     sf_relaxation_time: Option<f64>,
     sf_strength: Option<f64>,
     sf_range: Option<f64>,
+    threads: Option<usize>,
 ) -> PyResult<(Points<'py>, Points<'py>)> {
     let kind: MotionKind = motion.parse().map_err(|e| parameter_error(py, e))?;
     if !(dt.is_finite() && dt > 0.0) {
@@ -92,6 +94,7 @@ fn step_crowd<'py>(
         sf_relaxation_time: sf_relaxation_time.unwrap_or(d.sf_relaxation_time),
         sf_strength: sf_strength.unwrap_or(d.sf_strength),
         sf_range: sf_range.unwrap_or(d.sf_range),
+        threads: threads.unwrap_or(d.threads),
     };
     params.validate().map_err(|e| parameter_error(py, e))?;
 

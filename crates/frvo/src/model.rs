@@ -50,6 +50,11 @@ pub struct MotionParams {
     pub sf_strength: f64,
     /// Social forces: repulsion range B, pixels.
     pub sf_range: f64,
+    /// Threads for a crowd step (FRVO and circular RVO): 0 uses rayon's global pool (every
+    /// core, or `RAYON_NUM_THREADS`), 1 stays on the caller's thread. Small crowds (under
+    /// about 1,000 agent-neighbour pairs) always stay on one thread. The velocities are the
+    /// same bit for bit whatever the number.
+    pub threads: usize,
 }
 
 impl Default for MotionParams {
@@ -63,6 +68,7 @@ impl Default for MotionParams {
             sf_relaxation_time: 2.0,
             sf_strength: 1.0,
             sf_range: 10.0,
+            threads: 0,
         }
     }
 }
@@ -151,6 +157,7 @@ impl MotionParams {
                 d.sf_strength
             },
             sf_range: positive(self.sf_range, d.sf_range),
+            threads: self.threads,
         }
     }
 }

@@ -156,6 +156,12 @@ impl Shapes {
         self.edges.push(Edge::sentinel(poly[(start + count) % n]));
     }
 
+    /// Appends every polygon of `other` (prepared with the same `reset`).
+    pub(crate) fn append(&mut self, other: &Shapes) {
+        debug_assert!(self.sides == other.sides && self.symmetric == other.symmetric);
+        self.edges.extend_from_slice(&other.edges);
+    }
+
     #[inline]
     pub(crate) fn get(&self, k: usize) -> Prepared<'_> {
         let n = self.stored() + 1;

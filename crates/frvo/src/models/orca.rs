@@ -1,5 +1,20 @@
 //! Reciprocal velocity obstacles for a crowd: FRVO (oriented ellipses) and, with circles, the
 //! classic RVO/ORCA baseline. Both share the polygon velocity obstacles, the grid and the LP.
+//!
+//! A step runs in three phases over contiguous blocks of agents, each block on one thread
+//! when the crowd is large enough (see [`MotionParams::threads`]):
+//! 1. each agent's neighbours (the grid is read-only);
+//! 2. (FRVO) the pairs each agent owns: of a pair that both agents list, the earlier agent
+//!    computes the avoidance (or the cull bound) once, for both;
+//! 3. each agent's half-planes (its own pairs, the negated reverse ones) and its LP.
+//!
+//! Every agent's result depends only on the phases before, never on which thread ran what, so
+//! any number of threads gives the same velocities bit for bit.
+
+use std::ops::Range;
+use std::sync::Arc;
+
+use rayon::prelude::*;
 
 use crate::agent::Agent;
 use crate::cull::{self, Body, Bound, Limits, Motion, Pair};
@@ -9,6 +24,16 @@ use crate::model::{MotionKind, MotionModel, MotionParams};
 use crate::neighbors::NeighborGrid;
 use crate::pair::{pair_avoidance, PairScratch, Shapes};
 use crate::velocity_obstacle::{avoidance_circle, reciprocal_line, Avoidance};
+
+/// Below this many neighbour slots (agents x neighbours) a step stays on one thread: handing
+/// work to threads costs a few microseconds per phase.
+const PARALLEL_MIN_SLOTS: usize = 1000;
+/// Blocks per thread, so that a thread that finishes early can take another block.
+const BLOCKS_PER_THREAD: usize = 4;
+/// Fewest agents in a block.
+const MIN_BLOCK_AGENTS: usize = 16;
+/// No slot: past the end of every slot array.
+const NONE: u32 = u32::MAX;
 
 /// How a pedestrian's footprint is built from its axes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -20,14 +45,108 @@ pub enum Footprint {
     Circle,
 }
 
-/// What an agent leaves in a neighbour slot for the reverse pair (FRVO).
+/// What the owner of a pair leaves in its neighbour slot (FRVO).
 #[derive(Clone, Copy, Debug)]
 enum Slot {
     /// The pair's avoidance.
     Exact(Avoidance),
-    /// The half-plane provably contains the speed disc and was skipped: the cull test's
-    /// bound, from which the other agent decides for itself.
+    /// The owner's half-plane provably contains the speed disc and was skipped: the cull
+    /// test's bound, from which the other agent decides for itself.
     Culled(Bound),
+}
+
+/// Where a step's phases run.
+#[derive(Clone, Debug)]
+enum Threads {
+    One,
+    /// Rayon's global pool (all cores, or `RAYON_NUM_THREADS`).
+    Global,
+    Pool(Arc<rayon::ThreadPool>),
+}
+
+impl Threads {
+    fn new(threads: usize) -> Self {
+        match threads {
+            0 => Self::Global,
+            1 => Self::One,
+            n => rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .map_or(Self::Global, |pool| Self::Pool(Arc::new(pool))),
+        }
+    }
+
+    fn count(&self) -> usize {
+        match self {
+            Self::One => 1,
+            Self::Global => rayon::current_num_threads(),
+            Self::Pool(pool) => pool.current_num_threads(),
+        }
+    }
+
+    /// Runs `body` on one of this pool's threads when `parallel` (so that the phases inside
+    /// it hand work between the pool's threads, which stay awake between phases, instead of
+    /// waking the caller after each), else on the caller's thread.
+    fn install<R: Send>(&self, parallel: bool, body: impl FnOnce() -> R + Send) -> R {
+        match self {
+            Self::Pool(pool) if parallel => pool.install(body),
+            Self::Global if parallel => rayon::scope(|_| body()),
+            _ => body(),
+        }
+    }
+
+    /// Calls `work` on every item: spread over the current pool's threads when `parallel`
+    /// (inside [`Threads::install`]).
+    fn for_each<T: Send>(parallel: bool, items: Vec<T>, work: impl Fn(T) + Send + Sync) {
+        if parallel {
+            items.into_par_iter().for_each(work);
+        } else {
+            items.into_iter().for_each(work);
+        }
+    }
+}
+
+/// One block's agents and its thread's scratch, reused across steps.
+#[derive(Clone, Debug, Default)]
+struct Block {
+    agents: Range<usize>,
+    /// Phase 1: the block's neighbour lists, concatenated; where each agent's ends.
+    list: Vec<u32>,
+    ends: Vec<u32>,
+    found: Vec<(f64, usize)>,
+    /// Phase 2, while agent `i` is processed: `mark[j]` is the slot of `i` in the list of an
+    /// earlier agent `j`, else `NONE`.
+    mark: Vec<u32>,
+    pair: PairScratch,
+    lines: Vec<Line>,
+    lp: Vec<Line>,
+    /// Phase 1 (FRVO): the block's prepared polygons and ellipses, appended to the step's.
+    shapes: Shapes,
+    negated_shapes: Shapes,
+    bodies: Vec<Body>,
+    polygon: Vec<V2>,
+}
+
+impl Block {
+    /// Builds each agent's polygon (no trigonometry: the unit polygon is cached) and prepares
+    /// it (and for odd sides its negation) for the pair computations, and its ellipse for the
+    /// cull test.
+    fn prepare_shapes(&mut self, agents: &[Agent], unit: &UnitPolygon, limits: &Limits) {
+        let symmetric = unit.is_symmetric();
+        self.shapes.reset(unit.sides(), symmetric);
+        self.negated_shapes.reset(unit.sides(), false);
+        self.bodies.clear();
+        for (k, a) in agents.iter().enumerate() {
+            let e = Ellipse::new(a.l, a.w, heading(a.vel, a.pref_vel));
+            self.bodies.push(Body::new(&e, limits));
+            self.polygon.clear();
+            e.for_each_vertex(unit, |q| self.polygon.push(q));
+            self.shapes.push(&self.polygon);
+            if !symmetric {
+                self.negated_shapes.push_negated(&self.shapes, k);
+            }
+        }
+    }
 }
 
 /// ORCA-style crowd stepper over convex polygon footprints.
@@ -35,37 +154,34 @@ enum Slot {
 pub struct Orca {
     params: MotionParams,
     footprint: Footprint,
+    threads: Threads,
     unit: UnitPolygon,
     grid: NeighborGrid,
     positions: Vec<V2>,
     valid: Vec<bool>,
-    /// Each agent's polygon and its negation, prepared for the pair computations.
+    /// Each agent's polygon (and, for odd sides, its negation), prepared for the pairs.
     shapes: Shapes,
     negated_shapes: Shapes,
     radii: Vec<f64>,
-    /// Neighbours of agent `i`, nearest first: `nbr[nbr_start[i]..nbr_start[i + 1]]`.
-    nbr_start: Vec<u32>,
-    nbr: Vec<u32>,
     /// Each agent's ellipse for the cull test (FRVO).
     bodies: Vec<Body>,
     limits: Limits,
-    /// Per neighbour slot (FRVO): what the reverse pair needs.
-    avoid: Vec<Slot>,
+    /// Neighbours of agent `i`, nearest first: `nbr[nbr_start[i]..nbr_start[i + 1]]`.
+    nbr_start: Vec<u32>,
+    nbr: Vec<u32>,
     /// The neighbour lists transposed to earlier agents: agent `i`'s entries
     /// `rev[rev_start[i]..rev_start[i + 1]]` are `(j, t)` with `j < i` and `nbr[t] == i`, so the
     /// reverse pair is found without searching `j`'s list.
     rev_start: Vec<u32>,
     rev: Vec<(u32, u32)>,
-    /// While agent `i` is processed: `slot_in[j]` is the slot of `i` in `j`'s list (from `rev`),
-    /// else `u32::MAX`.
-    slot_in: Vec<u32>,
+    fill: Vec<u32>,
+    /// Per neighbour slot (FRVO): the slot of the same pair in an earlier agent's list, which
+    /// owns it, else `NONE`; and, for owned slots, what the owner computed.
+    partner: Vec<u32>,
+    avoid: Vec<Slot>,
     feasible: Vec<bool>,
-    // Per-agent scratch, reused across agents and steps.
-    polygon: Vec<V2>,
-    pair_scratch: PairScratch,
-    neighbors: Vec<(f64, usize)>,
-    lines: Vec<Line>,
-    scratch: Vec<Line>,
+    blocks: Vec<Block>,
+    parallel: bool,
 }
 
 impl Orca {
@@ -74,6 +190,7 @@ impl Orca {
         Self {
             params,
             footprint,
+            threads: Threads::new(params.threads),
             unit: UnitPolygon::new(params.polygon_sides),
             grid: NeighborGrid::default(),
             positions: Vec::new(),
@@ -85,16 +202,14 @@ impl Orca {
             limits: Limits::new(params.time_horizon, params.max_speed, params.polygon_sides),
             nbr_start: Vec::new(),
             nbr: Vec::new(),
-            avoid: Vec::new(),
             rev_start: Vec::new(),
             rev: Vec::new(),
-            slot_in: Vec::new(),
+            fill: Vec::new(),
+            partner: Vec::new(),
+            avoid: Vec::new(),
             feasible: Vec::new(),
-            polygon: Vec::new(),
-            pair_scratch: PairScratch::default(),
-            neighbors: Vec::new(),
-            lines: Vec::new(),
-            scratch: Vec::new(),
+            blocks: Vec::new(),
+            parallel: false,
         }
     }
 
@@ -110,23 +225,69 @@ impl Orca {
         &self.feasible
     }
 
-    /// Every valid agent's neighbour list (nearest first, at most `max_neighbors`).
-    fn find_neighbors(&mut self) {
+    /// Whether the last [`MotionModel::step`] was spread over more than one thread.
+    pub fn last_parallel(&self) -> bool {
+        self.parallel
+    }
+
+    /// Splits the agents into blocks: one, or a few per thread when `parallel`.
+    fn make_blocks(&mut self, n: usize, parallel: bool) {
+        let count = if parallel {
+            (self.threads.count() * BLOCKS_PER_THREAD)
+                .min(n / MIN_BLOCK_AGENTS)
+                .max(1)
+        } else {
+            1
+        };
+        self.blocks.resize_with(count, Block::default);
+        for (b, block) in self.blocks.iter_mut().enumerate() {
+            block.agents = b * n / count..(b + 1) * n / count;
+            if block.mark.len() != n {
+                block.mark.clear();
+                block.mark.resize(n, NONE);
+            }
+        }
+    }
+
+    /// Phase 1: every valid agent's neighbour list, gathered into `nbr`, and (FRVO) its
+    /// prepared polygon and ellipse.
+    fn gather(&mut self, agents: &[Agent], parallel: bool) {
+        let (grid, positions, valid) = (&self.grid, &self.positions, &self.valid);
+        let (max, unit, limits) = (self.params.max_neighbors, &self.unit, &self.limits);
+        let ellipse = self.footprint == Footprint::Ellipse;
+        let blocks: Vec<&mut Block> = self.blocks.iter_mut().collect();
+        Threads::for_each(parallel, blocks, |block| {
+            if ellipse {
+                block.prepare_shapes(&agents[block.agents.clone()], unit, limits);
+            }
+            block.list.clear();
+            block.ends.clear();
+            for i in block.agents.clone() {
+                if valid[i] {
+                    grid.query(positions, i, max, &mut block.found);
+                    block
+                        .list
+                        .extend(block.found.iter().map(|&(_, j)| j as u32));
+                }
+                block.ends.push(block.list.len() as u32);
+            }
+        });
         self.nbr_start.clear();
         self.nbr.clear();
         self.nbr_start.push(0);
-        for i in 0..self.positions.len() {
-            if self.valid[i] {
-                self.grid.query(
-                    &self.positions,
-                    i,
-                    self.params.max_neighbors,
-                    &mut self.neighbors,
-                );
-                self.nbr
-                    .extend(self.neighbors.iter().map(|&(_, j)| j as u32));
+        let (sides, symmetric) = (self.unit.sides(), self.unit.is_symmetric());
+        self.shapes.reset(sides, symmetric);
+        self.negated_shapes.reset(sides, false);
+        self.bodies.clear();
+        for block in &self.blocks {
+            let base = self.nbr.len() as u32;
+            self.nbr_start.extend(block.ends.iter().map(|&e| base + e));
+            self.nbr.extend_from_slice(&block.list);
+            if ellipse {
+                self.shapes.append(&block.shapes);
+                self.negated_shapes.append(&block.negated_shapes);
+                self.bodies.extend_from_slice(&block.bodies);
             }
-            self.nbr_start.push(self.nbr.len() as u32);
         }
     }
 
@@ -149,105 +310,280 @@ impl Orca {
         let total = self.rev_start[n] as usize;
         self.rev.clear();
         self.rev.resize(total + 1, (0, 0));
-        let mut fill = self.rev_start[..n].to_vec();
+        self.fill.clear();
+        self.fill.extend_from_slice(&self.rev_start[..n]);
         for j in 0..n {
             for t in self.nbr_start[j]..self.nbr_start[j + 1] {
                 let i = self.nbr[t as usize] as usize;
                 let later = j < i;
-                let at = if later { fill[i] as usize } else { total };
+                let at = if later { self.fill[i] as usize } else { total };
                 self.rev[at] = (j as u32, t);
-                fill[i] += u32::from(later);
+                self.fill[i] += u32::from(later);
             }
         }
         self.rev.truncate(total);
-        self.slot_in.clear();
-        self.slot_in.resize(n, u32::MAX);
     }
 
-    /// Marks (or, with `u32::MAX`, clears) the slots of `i` in earlier agents' lists.
-    fn mark_incoming(&mut self, i: usize, clear: bool) {
-        for &(j, t) in &self.rev[self.rev_start[i] as usize..self.rev_start[i + 1] as usize] {
-            self.slot_in[j as usize] = if clear { u32::MAX } else { t };
+    /// Phase 2 (FRVO): every slot's partner, and the pairs each agent owns.
+    fn own_pairs(&mut self, agents: &[Agent], dt: f64, parallel: bool) {
+        let slots = self.nbr.len();
+        let mut partner = std::mem::take(&mut self.partner);
+        partner.resize(slots, NONE);
+        let mut avoid = std::mem::take(&mut self.avoid);
+        if avoid.len() < slots {
+            // Never read before written: a slot is read only when owned, after its owner wrote it.
+            avoid.resize(
+                slots,
+                Slot::Exact(Avoidance {
+                    u: V2::zeros(),
+                    normal: V2::zeros(),
+                }),
+            );
+        }
+        let mut blocks = std::mem::take(&mut self.blocks);
+        let view = self.view(agents, dt, &[], &[]);
+        let mut work = Vec::with_capacity(blocks.len());
+        let (mut partner_rest, mut avoid_rest) = (&mut partner[..], &mut avoid[..slots]);
+        for block in &mut blocks {
+            let range = view.slots_of(&block.agents);
+            let (p, rest) = std::mem::take(&mut partner_rest).split_at_mut(range.len());
+            partner_rest = rest;
+            let (a, rest) = std::mem::take(&mut avoid_rest).split_at_mut(range.len());
+            avoid_rest = rest;
+            work.push((block, p, a, range.start));
+        }
+        Threads::for_each(parallel, work, |(block, partner, avoid, base)| {
+            for i in block.agents.clone() {
+                view.own_pairs(i, block, partner, avoid, base);
+            }
+        });
+        (self.partner, self.avoid, self.blocks) = (partner, avoid, blocks);
+    }
+
+    /// Phase 3: every agent's half-planes and LP.
+    fn solve_all(&mut self, agents: &[Agent], dt: f64, parallel: bool) -> Vec<V2> {
+        let n = agents.len();
+        let mut out = vec![V2::zeros(); n];
+        let mut feasible = std::mem::take(&mut self.feasible);
+        feasible.clear();
+        feasible.resize(n, false);
+        let mut blocks = std::mem::take(&mut self.blocks);
+        let view = self.view(agents, dt, &self.partner, &self.avoid);
+        let mut work = Vec::with_capacity(blocks.len());
+        let (mut vel_rest, mut ok_rest) = (&mut out[..], &mut feasible[..]);
+        for block in &mut blocks {
+            let len = block.agents.len();
+            let (v, rest) = std::mem::take(&mut vel_rest).split_at_mut(len);
+            vel_rest = rest;
+            let (f, rest) = std::mem::take(&mut ok_rest).split_at_mut(len);
+            ok_rest = rest;
+            work.push((block, v, f));
+        }
+        Threads::for_each(parallel, work, |(block, vel, ok)| {
+            let first = block.agents.start;
+            for i in block.agents.clone() {
+                (vel[i - first], ok[i - first]) = view.solve(i, block);
+            }
+        });
+        (self.feasible, self.blocks) = (feasible, blocks);
+        out
+    }
+
+    fn view<'a>(
+        &'a self,
+        agents: &'a [Agent],
+        dt: f64,
+        partner: &'a [u32],
+        avoid: &'a [Slot],
+    ) -> View<'a> {
+        View {
+            agents,
+            dt,
+            params: &self.params,
+            footprint: self.footprint,
+            symmetric: self.unit.is_symmetric(),
+            valid: &self.valid,
+            nbr_start: &self.nbr_start,
+            nbr: &self.nbr,
+            rev_start: &self.rev_start,
+            rev: &self.rev,
+            partner,
+            avoid,
+            shapes: &self.shapes,
+            negated_shapes: &self.negated_shapes,
+            bodies: &self.bodies,
+            radii: &self.radii,
+            limits: &self.limits,
+        }
+    }
+}
+
+/// What the phases read: the step's input and the earlier phases' results (`partner` and
+/// `avoid` are phase 2's, empty during it).
+#[derive(Clone, Copy)]
+struct View<'a> {
+    agents: &'a [Agent],
+    dt: f64,
+    params: &'a MotionParams,
+    footprint: Footprint,
+    symmetric: bool,
+    valid: &'a [bool],
+    nbr_start: &'a [u32],
+    nbr: &'a [u32],
+    rev_start: &'a [u32],
+    rev: &'a [(u32, u32)],
+    partner: &'a [u32],
+    avoid: &'a [Slot],
+    shapes: &'a Shapes,
+    negated_shapes: &'a Shapes,
+    bodies: &'a [Body],
+    radii: &'a [f64],
+    limits: &'a Limits,
+}
+
+impl View<'_> {
+    fn slots(&self, i: usize) -> Range<usize> {
+        self.nbr_start[i] as usize..self.nbr_start[i + 1] as usize
+    }
+
+    /// The slots of a range of agents.
+    fn slots_of(&self, agents: &Range<usize>) -> Range<usize> {
+        self.nbr_start[agents.start] as usize..self.nbr_start[agents.end] as usize
+    }
+
+    /// `p = pos_j - pos_i` and `w = v_i - v_j`.
+    #[inline]
+    fn relative(&self, i: usize, j: usize) -> (V2, V2) {
+        let (a, b) = (&self.agents[i], &self.agents[j]);
+        let p = b.pos - a.pos;
+        // Coincident: a tiny offset by index order, so the two push apart instead of computing
+        // the same velocity.
+        let p = if p.norm_squared() < 1e-18 {
+            V2::new(if i < j { 1e-6 } else { -1e-6 }, 0.0)
+        } else {
+            p
+        };
+        (p, a.vel - b.vel)
+    }
+
+    fn pair(&self, i: usize, j: usize, p: V2, w: V2) -> Pair<'_> {
+        Pair {
+            p,
+            w,
+            a: &self.bodies[i],
+            b: &self.bodies[j],
         }
     }
 
-    /// Builds every agent's polygon once per step (no trigonometry: the unit polygon is cached)
-    /// and prepares it and its negation for the pair computations, and its ellipse for the
-    /// cull test.
-    fn prepare_shapes(&mut self, agents: &[Agent]) {
-        let sides = self.unit.sides();
-        let symmetric = self.unit.is_symmetric();
-        self.shapes.reset(sides, symmetric);
-        self.negated_shapes.reset(sides, false);
-        self.bodies.clear();
-        for (k, a) in agents.iter().enumerate() {
-            let e = Ellipse::new(a.l, a.w, heading(a.vel, a.pref_vel));
-            self.bodies.push(Body::new(&e, &self.limits));
-            self.polygon.clear();
-            e.for_each_vertex(&self.unit, |q| self.polygon.push(q));
-            self.shapes.push(&self.polygon);
-            if !symmetric {
-                self.negated_shapes.push_negated(&self.shapes, k);
+    /// Agent `i`'s exact avoidance of `j` from their polygons.
+    #[inline]
+    fn exact(&self, i: usize, j: usize, p: V2, w: V2, scratch: &mut PairScratch) -> Avoidance {
+        let b = self.shapes.get(j);
+        let neg_a = if self.symmetric {
+            self.shapes.get(i) // each polygon is its own reflection
+        } else {
+            self.negated_shapes.get(i)
+        };
+        pair_avoidance(p, w, b, neg_a, self.params.time_horizon, self.dt, scratch)
+    }
+
+    /// Phase 2 for agent `i`: the partner of each of its slots and, for those it owns, the
+    /// cull bound or the exact avoidance (`partner` and `avoid` are its block's, from slot
+    /// `base`).
+    fn own_pairs(
+        &self,
+        i: usize,
+        block: &mut Block,
+        partner: &mut [u32],
+        avoid: &mut [Slot],
+        base: usize,
+    ) {
+        let incoming = &self.rev[self.rev_start[i] as usize..self.rev_start[i + 1] as usize];
+        for &(j, t) in incoming {
+            block.mark[j as usize] = t;
+        }
+        let motion = Motion::new(self.agents[i].vel);
+        for s in self.slots(i) {
+            let j = self.nbr[s] as usize;
+            let t = block.mark[j];
+            partner[s - base] = t;
+            if t == NONE {
+                let (p, w) = self.relative(i, j);
+                avoid[s - base] = match cull::cull(&self.pair(i, j, p, w), motion, self.limits) {
+                    Some(bound) => Slot::Culled(bound),
+                    None => Slot::Exact(self.exact(i, j, p, w, &mut block.pair)),
+                };
             }
         }
+        for &(j, _) in incoming {
+            block.mark[j as usize] = NONE;
+        }
     }
 
-    /// Agent `i`'s avoidance of neighbour `j` from their polygons, or `None` when its
-    /// half-plane provably contains the speed disc (see [`crate::cull`]). Records in `avoid`
-    /// what the reverse pair needs.
+    /// Agent `i`'s avoidance of the neighbour in slot `s` (FRVO), or `None` when its
+    /// half-plane provably contains the speed disc.
+    #[inline]
     fn polygon_avoidance(
-        &mut self,
+        &self,
         i: usize,
-        j: usize,
-        a: Motion,
-        p: V2,
-        w: V2,
-        dt: f64,
+        s: usize,
+        motion: Motion,
+        scratch: &mut PairScratch,
     ) -> Option<Avoidance> {
-        // What agent j left for the pair, if it is done and lists i (else `slot_in[j]` is
-        // u32::MAX, past the end).
-        let reverse = self.avoid.get(self.slot_in[j] as usize);
-        let slot = if let Some(Slot::Exact(r)) = reverse {
-            // The negation of the reverse pair's (see `pair_avoidance`).
-            Slot::Exact(Avoidance {
+        let t = self.partner[s];
+        let slot = self.avoid[if t == NONE { s } else { t as usize }];
+        match (t == NONE, slot) {
+            (true, Slot::Exact(avoid)) => Some(avoid),
+            (true, Slot::Culled(_)) => None,
+            // The negation of the owner's (see `pair_avoidance`).
+            (false, Slot::Exact(r)) => Some(Avoidance {
                 u: -r.u,
                 normal: -r.normal,
-            })
-        } else {
-            let pair = Pair {
-                p,
-                w,
-                a: &self.bodies[i],
-                b: &self.bodies[j],
-            };
-            let culled = match reverse {
-                // Agent j skipped it: whether i may too depends on i's own velocity.
-                Some(Slot::Culled(bound)) => {
-                    let bound = bound.reversed();
-                    cull::contains_disc(&pair, &bound, a, &self.limits).then_some(bound)
-                }
-                _ => cull::cull(&pair, a, &self.limits),
-            };
-            match culled {
-                Some(bound) => Slot::Culled(bound),
-                None => {
-                    let b = self.shapes.get(j);
-                    let neg_a = if self.unit.is_symmetric() {
-                        self.shapes.get(i) // each polygon is its own reflection
-                    } else {
-                        self.negated_shapes.get(i)
-                    };
-                    let tau = self.params.time_horizon;
-                    let scratch = &mut self.pair_scratch;
-                    Slot::Exact(pair_avoidance(p, w, b, neg_a, tau, dt, scratch))
+            }),
+            // The owner skipped it: whether `i` may too depends on its own velocity.
+            (false, Slot::Culled(bound)) => {
+                let j = self.nbr[s] as usize;
+                let (p, w) = self.relative(i, j);
+                let pair = self.pair(i, j, p, w);
+                if cull::contains_disc(&pair, &bound.reversed(), motion, self.limits) {
+                    None
+                } else {
+                    Some(self.exact(i, j, p, w, scratch))
                 }
             }
-        };
-        self.avoid.push(slot);
-        match slot {
-            Slot::Exact(avoid) => Some(avoid),
-            Slot::Culled(_) => None,
         }
+    }
+
+    /// Phase 3 for agent `i`: its new velocity, and whether its LP was feasible.
+    fn solve(&self, i: usize, block: &mut Block) -> (V2, bool) {
+        let a = &self.agents[i];
+        let pref = finite_pref(a);
+        if !self.valid[i] {
+            return (pref, false);
+        }
+        let motion = Motion::new(a.vel);
+        block.lines.clear();
+        for s in self.slots(i) {
+            let j = self.nbr[s] as usize;
+            let avoid = match self.footprint {
+                Footprint::Ellipse => match self.polygon_avoidance(i, s, motion, &mut block.pair) {
+                    Some(avoid) => avoid,
+                    None => continue, // never binds: the LP is the same without it
+                },
+                Footprint::Circle => {
+                    let (p, w) = self.relative(i, j);
+                    let r = self.radii[i] + self.radii[j];
+                    avoidance_circle(p, r, w, self.params.time_horizon, self.dt)
+                }
+            };
+            let line = reciprocal_line(a.vel, avoid);
+            if is_finite(line.point) && line.dir.norm_squared() > 0.5 {
+                block.lines.push(line);
+            }
+        }
+        let sol = lp::solve(&block.lines, self.params.max_speed, pref, &mut block.lp);
+        let ok = is_finite(sol.velocity);
+        (if ok { sol.velocity } else { pref }, ok && sol.feasible)
     }
 }
 
@@ -293,79 +629,40 @@ impl MotionModel for Orca {
     }
 
     fn step(&mut self, agents: &[Agent], dt: f64) -> Vec<V2> {
-        let dt = sane_dt(dt);
+        let n = agents.len();
+        let parallel = self.threads.count() > 1
+            && n * self.params.max_neighbors.min(n.saturating_sub(1)) >= PARALLEL_MIN_SLOTS;
+        self.parallel = parallel;
+        let threads = self.threads.clone();
+        threads.install(parallel, || self.step_on(agents, sane_dt(dt), parallel))
+    }
+}
+
+impl Orca {
+    /// The step's phases, on the current thread pool when `parallel`.
+    fn step_on(&mut self, agents: &[Agent], dt: f64, parallel: bool) -> Vec<V2> {
+        let n = agents.len();
         let p = self.params;
         self.positions.clear();
         self.positions.extend(agents.iter().map(|a| a.pos));
         self.valid.clear();
         self.valid.extend(agents.iter().map(is_valid));
         self.radii.clear();
-        match self.footprint {
-            Footprint::Ellipse => self.prepare_shapes(agents),
-            Footprint::Circle => self.radii.extend(
+        if self.footprint == Footprint::Circle {
+            self.radii.extend(
                 agents
                     .iter()
                     .map(|a| 0.5 * finite_max(a.l, a.w).max(MIN_SIZE)),
-            ),
+            );
         }
         self.grid
             .build(&self.positions, &self.valid, p.neighbor_radius);
-        self.find_neighbors();
+        self.make_blocks(n, parallel);
+        self.gather(agents, parallel);
         if self.footprint == Footprint::Ellipse {
             self.transpose_neighbors();
+            self.own_pairs(agents, dt, parallel);
         }
-        self.feasible.clear();
-        self.avoid.clear();
-
-        let mut out = Vec::with_capacity(agents.len());
-        for (i, a) in agents.iter().enumerate() {
-            let pref = finite_pref(a);
-            let motion = Motion::new(a.vel);
-            let slots = self.nbr_start[i] as usize..self.nbr_start[i + 1] as usize;
-            if !self.valid[i] {
-                out.push(pref);
-                self.feasible.push(false);
-                continue;
-            }
-            self.lines.clear();
-            let ellipse = self.footprint == Footprint::Ellipse;
-            if ellipse {
-                self.mark_incoming(i, false);
-            }
-            for slot in slots {
-                let j = self.nbr[slot] as usize;
-                let b = &agents[j];
-                let (mut rel_pos, rel_vel) = (b.pos - a.pos, a.vel - b.vel);
-                if rel_pos.norm_squared() < 1e-18 {
-                    // Coincident: a tiny offset by index order, so the two push apart instead
-                    // of computing the same velocity.
-                    rel_pos = V2::new(if i < j { 1e-6 } else { -1e-6 }, 0.0);
-                }
-                let avoid = match self.footprint {
-                    Footprint::Ellipse => {
-                        match self.polygon_avoidance(i, j, motion, rel_pos, rel_vel, dt) {
-                            Some(avoid) => avoid,
-                            None => continue, // never binds: the LP is the same without it
-                        }
-                    }
-                    Footprint::Circle => {
-                        let r = self.radii[i] + self.radii[j];
-                        avoidance_circle(rel_pos, r, rel_vel, p.time_horizon, dt)
-                    }
-                };
-                let line = reciprocal_line(a.vel, avoid);
-                if is_finite(line.point) && line.dir.norm_squared() > 0.5 {
-                    self.lines.push(line);
-                }
-            }
-            if ellipse {
-                self.mark_incoming(i, true);
-            }
-            let sol = lp::solve(&self.lines, p.max_speed, pref, &mut self.scratch);
-            let ok = is_finite(sol.velocity);
-            out.push(if ok { sol.velocity } else { pref });
-            self.feasible.push(ok && sol.feasible);
-        }
-        out
+        self.solve_all(agents, dt, parallel)
     }
 }

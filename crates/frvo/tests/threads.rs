@@ -1,0 +1,101 @@
+//! A crowd step spread over threads gives the same velocities, bit for bit, as on one thread.
+
+use frvo::geometry::V2;
+use frvo::{Agent, Footprint, MotionModel, MotionParams, Orca};
+
+/// A small deterministic generator (no RNG dependency): uniform in [0, 1).
+struct Lcg(u64);
+
+impl Lcg {
+    fn next(&mut self) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// `n` agents packed about one per 25 x 25 px, with random velocities, preferred velocities and
+/// sizes, some coincident pairs and some invalid agents (NaN position or velocity).
+fn crowd(n: usize, seed: u64) -> Vec<Agent> {
+    let mut rng = Lcg(seed);
+    let side = 25.0 * (n as f64).sqrt();
+    let mut agents: Vec<Agent> = (0..n)
+        .map(|_| {
+            let pos = V2::new(side * rng.next(), side * rng.next());
+            let vel = V2::new(4.0 * rng.next() - 2.0, 4.0 * rng.next() - 2.0);
+            let pref = V2::new(4.0 * rng.next() - 2.0, 4.0 * rng.next() - 2.0);
+            Agent::new(
+                pos,
+                vel,
+                pref,
+                10.0 + 20.0 * rng.next(),
+                20.0 + 30.0 * rng.next(),
+            )
+        })
+        .collect();
+    for k in (0..n).step_by(97) {
+        agents[k].pos = agents[(k + 1) % n].pos; // coincident
+    }
+    for k in (5..n).step_by(211) {
+        agents[k].pos.x = f64::NAN;
+    }
+    for k in (7..n).step_by(223) {
+        agents[k].vel.y = f64::INFINITY;
+    }
+    agents
+}
+
+fn step(
+    footprint: Footprint,
+    params: MotionParams,
+    agents: &[Agent],
+) -> (Vec<V2>, Vec<bool>, bool) {
+    let mut model = Orca::new(params, footprint);
+    let v = model.step(agents, 1.0);
+    (v, model.last_feasible().to_vec(), model.last_parallel())
+}
+
+#[test]
+fn threads_give_the_same_velocities_bit_for_bit() {
+    for (footprint, sides) in [
+        (Footprint::Ellipse, 8), // symmetric polygons: half the edges stored
+        (Footprint::Ellipse, 7), // odd: negated polygons
+        (Footprint::Circle, 8),
+    ] {
+        for (n, max_neighbors) in [(1500, 10), (600, 40)] {
+            let agents = crowd(n, 17 + n as u64);
+            let params = |threads| MotionParams {
+                neighbor_radius: 120.0,
+                max_neighbors,
+                max_speed: 4.0,
+                polygon_sides: sides,
+                threads,
+                ..MotionParams::default()
+            };
+            let (one, one_ok, one_par) = step(footprint, params(1), &agents);
+            assert!(!one_par, "threads = 1 must stay on the caller's thread");
+            assert!(one_ok.iter().any(|&ok| ok) && one_ok.iter().any(|&ok| !ok));
+            for threads in [0, 2, 3] {
+                let (many, many_ok, many_par) = step(footprint, params(threads), &agents);
+                // The global pool (threads = 0) may have one thread on a one-core machine.
+                assert!(many_par || (threads == 0 && rayon_threads() == 1));
+                let same = one
+                    .iter()
+                    .zip(&many)
+                    .all(|(a, b)| a.x.to_bits() == b.x.to_bits() && a.y.to_bits() == b.y.to_bits());
+                assert!(
+                    same,
+                    "{footprint:?} sides {sides} n {n} k {max_neighbors} threads {threads}"
+                );
+                assert_eq!(one_ok, many_ok);
+            }
+        }
+    }
+}
+
+/// The global pool's size, as the model sees it.
+fn rayon_threads() -> usize {
+    rayon::current_num_threads()
+}
