@@ -5,9 +5,11 @@
 //! [`crate::velocity_obstacle::avoidance`] computes, without building the obstacle's features
 //! as a separate list: the merge carries each edge's unit normal from its source polygon (where
 //! it was computed once per agent and step, not per pair), and the facing test of every edge is
-//! made while it is merged. Only the features on whose outer side `w` lies can hold its nearest
-//! boundary point, so only those are projected on. `tests/orca_reference.rs` checks the crowd
-//! step built on this against the plain composition of the public pieces.
+//! made while it is merged. For symmetric shapes only the first half of the sum is merged and
+//! the other half is read as its reflection, never written out. Only the cap (the facing run)
+//! and the legs are visited when the shapes are apart, in one pass without data-dependent
+//! branches. `tests/orca_reference.rs` checks the crowd step built on this against the plain
+//! composition of the public pieces.
 
 use crate::geometry::{left_normal, lowest_vertex, right_normal, MAX_VERTICES, V2};
 use crate::velocity_obstacle::{unit, Avoidance};
@@ -172,26 +174,32 @@ impl Shapes {
     }
 }
 
-/// The merged polygon of one pair: vertex `k` (without the offset `p`; vertex `len` repeats
-/// vertex 0, so edge `k` runs from `v[k]` to `v[k + 1]`), the unit outward normal of edge `k`,
-/// and `h[k] = (p + v[k]) · n[k]`, the signed offset of its line from the origin (negative: the
-/// edge faces the origin); `hm[k]` is that of edge k's reflection (symmetric shapes). Reused
-/// between pairs.
+/// One merged edge: its start vertex `v` without the offset `p`, its unit outward normal `n`,
+/// and the signed offsets from the origin of its line and of its reflection's (`-v`, `-n`),
+/// `h = [p · n + v · n, v · n - p · n]` (negative: the edge faces the origin).
+#[derive(Clone, Copy, Debug, Default)]
+struct Merged {
+    v: V2,
+    n: V2,
+    h: [f64; 2],
+}
+
+/// The merged edges of one pair (for symmetric shapes the first half of the sum, whose edge
+/// `k + half` is edge k's reflection), edge k running from `edges[k].v` to `edges[k + 1].v`:
+/// after the last stored edge comes the vertex that closes the polygon (`v[0]`) or, for a
+/// half, the reflected first vertex (`-v[0]`). Reused between pairs.
 #[derive(Clone, Debug)]
 pub(crate) struct PairScratch {
-    v: [V2; MAX_VERTICES + 1],
-    n: [V2; MAX_VERTICES],
-    h: [f64; MAX_VERTICES],
-    hm: [f64; MAX_VERTICES],
+    edges: [Merged; MAX_VERTICES + 1],
+    /// The nearest point, normal and frame of each feature in [`nearest`] (after slot 0).
+    feats: [(V2, V2, usize); MAX_VERTICES + 3],
 }
 
 impl Default for PairScratch {
     fn default() -> Self {
         Self {
-            v: [V2::zeros(); MAX_VERTICES + 1],
-            n: [V2::zeros(); MAX_VERTICES],
-            h: [0.0; MAX_VERTICES],
-            hm: [0.0; MAX_VERTICES],
+            edges: [Merged::default(); MAX_VERTICES + 1],
+            feats: [(V2::zeros(), V2::zeros(), 0); MAX_VERTICES + 3],
         }
     }
 }
@@ -226,9 +234,8 @@ pub(crate) fn pair_avoidance(
     }
     // Merge the edges in angle order (the smaller pseudo-angle first; both when within
     // PARALLEL_ANGLE), recording whether each faces the origin (the origin lies on its outer
-    // side: h < 0) in bit k of `facing`. An exhausted walk rests on its sentinel, whose angle
-    // is past every other. For symmetric shapes this is the first half of the sum, and edge
-    // k's reflection (vertex -v, normal -n, offset `hm`) is edge `k + half`.
+    // side: h < 0) in bit k of `facing`, and whether its reflection does in `facing_m`. An
+    // exhausted walk rests on its sentinel, whose angle is past every other.
     let (mut i, mut j, mut k) = (0usize, 0usize, 0usize);
     let (mut facing, mut facing_m) = (0u64, 0u64);
     // Every step advances at least one walk (two angles cannot each exceed the other by the
@@ -245,23 +252,26 @@ pub(crate) fn pair_avoidance(
         let (h, hm) = (along_p + along_v, along_v - along_p);
         facing |= u64::from(h < 0.0) << k;
         facing_m |= u64::from(hm < 0.0) << k;
-        (out.v[k], out.n[k], out.h[k], out.hm[k]) = (v, normal, h, hm);
+        out.edges[k] = Merged {
+            v,
+            n: normal,
+            h: [h, hm],
+        };
         i += usize::from(adv_b);
         j += usize::from(adv_a);
         k += 1;
     }
-    let len = if mirror && 2 * k <= MAX_VERTICES {
-        let half = k;
-        for t in 0..half {
-            (out.v[half + t], out.n[half + t]) = (-out.v[t], -out.n[t]);
-            out.h[half + t] = out.hm[t];
-        }
+    // The reflected half is not written out: edge `half + r` is read as edge r reflected
+    // (see `Run` and `nearest`).
+    let half = k;
+    let mirror = mirror && 2 * half <= MAX_VERTICES;
+    let (len, closing) = if mirror {
         facing |= facing_m << half;
-        2 * half
+        (2 * half, -out.edges[0].v)
     } else {
-        k
+        (half, out.edges[0].v)
     };
-    out.v[len] = out.v[0];
+    out.edges[half].v = closing;
     // The facing edges of a convex polygon are one contiguous run (none when the origin is
     // inside); it starts at a facing edge whose predecessor does not face.
     let first = if len >= 3 {
@@ -271,67 +281,94 @@ pub(crate) fn pair_avoidance(
     } else {
         None
     };
-    match first {
-        Some(first) => {
-            // Apart: the cap is the facing run of P / tau, the legs the rays from the origin
-            // through its end vertices.
-            let inv_tau = 1.0 / tau;
-            // The run ends where the facing bits (rotated to start at `first`) first stop.
-            let rotated = (facing >> first | facing << (len - first)) & (u64::MAX >> (64 - len));
-            let count = (!rotated).trailing_zeros().min(len as u32) as usize;
-            let last = if first + count >= len {
-                first + count - len
-            } else {
-                first + count
-            };
-            let start = p + out.v[first];
-            let end = p + out.v[last];
-            let legs = [
-                (start * inv_tau, start, unit(left_normal(start))),
-                (end * inv_tau, end, unit(right_normal(end))),
-            ];
-            nearest(w, inv_tau, p, out, first, count, len, &legs)
+    let Some(first) = first else {
+        return overlapping(w, 1.0 / dt, p, out, half, mirror);
+    };
+    // Apart: the cap is the facing run of P / tau, the legs the rays from the origin through
+    // its end vertices. The run ends where the facing bits (rotated to start at `first`) first
+    // stop.
+    let rotated = (facing >> first | facing << (len - first)) & (u64::MAX >> (64 - len));
+    let count = (!rotated).trailing_zeros().min(len as u32) as usize;
+    let run = Run::at(first, half, mirror);
+    nearest(w, 1.0 / tau, p, out, run, count, true)
+}
+
+/// A position on the merged polygon's boundary: stored edge `r`, or its reflection (edge
+/// `half + r` of a symmetric sum) when `neg` is 1.
+#[derive(Clone, Copy)]
+struct Run {
+    r: usize,
+    neg: usize,
+    half: usize,
+    /// 1 for a symmetric sum (the reflection follows the stored half), else 0.
+    flip: usize,
+}
+
+/// By `Run::neg`: a table, not a branch, since the sign changes along the run.
+const SIGN: [f64; 2] = [1.0, -1.0];
+
+impl Run {
+    fn at(k: usize, half: usize, mirror: bool) -> Self {
+        let reflected = k >= half;
+        Self {
+            r: if reflected { k - half } else { k },
+            neg: usize::from(reflected),
+            half,
+            flip: usize::from(mirror),
         }
-        None => nearest(w, 1.0 / dt, p, out, 0, len, len, &[]),
+    }
+
+    /// The next edge, cyclically: past the stored half, the first stored edge or its
+    /// reflection.
+    fn advance(&mut self) {
+        let wrap = self.r + 1 == self.half;
+        self.r = if wrap { 0 } else { self.r + 1 };
+        self.neg ^= usize::from(wrap) & self.flip;
+    }
+
+    /// The stored edge (`r < half <= MAX_VERTICES`: the modulo only spares bounds checks).
+    fn index(&self) -> usize {
+        self.r % MAX_VERTICES
+    }
+
+    /// The current edge's start vertex.
+    fn vertex(&self, edges: &[Merged]) -> V2 {
+        edges[self.index()].v * SIGN[self.neg]
     }
 }
 
-/// Nearest boundary point to `w` of the convex region bounded by the `count` merged edges from
-/// `first` (cyclically, scaled by `scale` about the origin after offsetting by `p`) and the
-/// `legs` (rays: start, direction, unit outward normal).
-#[allow(clippy::too_many_arguments)]
-#[inline]
-fn nearest(
+/// Overlapping shapes: the nearest boundary point of `P / dt` (`scale = 1 / dt`). `w` is
+/// usually inside, where only the supporting lines' distances matter: they are found from the
+/// stored half alone (an edge and its reflection share `w · n`), and only from outside is the
+/// boundary projected on.
+fn overlapping(
     w: V2,
     scale: f64,
     p: V2,
-    poly: &PairScratch,
-    first: usize,
-    count: usize,
-    len: usize,
-    legs: &[(V2, V2, V2)],
+    poly: &mut PairScratch,
+    half: usize,
+    mirror: bool,
 ) -> Avoidance {
-    // Signed distance of `w` outside each feature's supporting line. Inside the region (all
-    // <= 0) the nearest boundary point lies on the nearest line. (Recomputed below in the
-    // rarer outside case rather than stored.)
-    let side = |k: usize| w.dot(&poly.n[k]) - scale * poly.h[k];
-    let next = |k: usize| if k + 1 == len { 0 } else { k + 1 };
-    let mut best_sd = f64::NEG_INFINITY;
-    let mut best_normal = V2::zeros();
-    // Selects, not branches: which feature is nearest is data-dependent.
-    let mut keep = |d: f64, normal: V2| {
-        let better = d > best_sd;
-        best_sd = if better { d } else { best_sd };
-        best_normal = if better { normal } else { best_normal };
+    // The farthest line, the first in edge order of equal distances: the farthest of the
+    // stored edges and of their reflections are kept apart, the stored one winning ties, as a
+    // walk over the whole polygon would find it (indices selected, not vectors, see `nearest`).
+    let (mut best, mut best_at) = (f64::NEG_INFINITY, 0);
+    let (mut best_m, mut best_m_at) = (f64::NEG_INFINITY, 0);
+    for (k, e) in poly.edges[..half].iter().enumerate() {
+        let along_w = w.dot(&e.n);
+        let (d, d_m) = (along_w - scale * e.h[0], -along_w - scale * e.h[1]);
+        let better = d > best;
+        best = if better { d } else { best };
+        best_at = if better { k } else { best_at };
+        let better = d_m > best_m;
+        best_m = if better { d_m } else { best_m };
+        best_m_at = if better { k } else { best_m_at };
+    }
+    let (best_sd, best_normal) = if mirror && best_m > best {
+        (best_m, -poly.edges[best_m_at].n)
+    } else {
+        (best, poly.edges[best_at].n)
     };
-    let mut k = first;
-    for _ in 0..count {
-        keep(side(k), poly.n[k]);
-        k = next(k);
-    }
-    for &(start, _, normal) in legs {
-        keep((w - start).dot(&normal), normal);
-    }
     if best_sd == f64::NEG_INFINITY {
         return Avoidance {
             u: V2::zeros(),
@@ -344,50 +381,101 @@ fn nearest(
             normal: best_normal,
         };
     }
-    // Outside: the nearest point lies on a feature whose line `w` is outside of (at a vertex,
-    // on one of the two features meeting there), so only those are projected on; the margin
-    // keeps features whose distances are rounding noise (at contact the legs and the cap can
-    // be collinear, and skipping one of them would pick a far point).
+    let len = if mirror { 2 * half } else { half };
+    nearest(w, scale, p, poly, Run::at(0, half, mirror), len, false)
+}
+
+/// Nearest boundary point to `w` of the convex region bounded by the `count` merged edges
+/// from `run` (scaled by `scale` about the origin after offsetting by `p`) and, with `legs`,
+/// the rays from the origin through the run's end vertices.
+#[inline(always)]
+fn nearest(
+    w: V2,
+    scale: f64,
+    p: V2,
+    poly: &mut PairScratch,
+    mut run: Run,
+    count: usize,
+    legs: bool,
+) -> Avoidance {
+    // One pass over the features, with selects rather than branches (which feature is nearest
+    // is data-dependent): the signed distance of `w` outside each supporting line (inside the
+    // region, all <= 0, the nearest boundary point lies on the farthest line), and the nearest
+    // point of each feature whose line `w` is outside of (from outside, the nearest boundary
+    // point lies on one of those; the margin keeps features whose distances are rounding
+    // noise: at contact the legs and the cap can be collinear, and skipping one of them would
+    // pick a far point). Ties go to the first feature in order.
     let margin = -1e-9 * (1.0 + w.norm_squared() + (p * scale).norm_squared());
-    let mut best_d2 = f64::INFINITY;
-    let mut best = (w, best_normal);
-    let mut k = first;
-    for _ in 0..count {
-        if side(k) > margin {
-            let start = (p + poly.v[k]) * scale;
-            let edge = (poly.v[k + 1] - poly.v[k]) * scale;
-            let e2 = edge.norm_squared();
-            let t = if e2 > 0.0 {
-                ((w - start).dot(&edge) / e2).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            let c = start + t * edge;
-            let d2 = (w - c).norm_squared();
-            if d2 < best_d2 {
-                best_d2 = d2;
-                best = (c, poly.n[k]);
-            }
-        }
-        k = next(k);
+    // A reflected edge is worked on as the stored one with `p` and `w` reflected, and the
+    // point and normal found are reflected back: negating is exact, so every number is the
+    // same up to sign as with the reflected edge itself.
+    let frame = [(p, w), (-p, -w)];
+    // Each feature's nearest point, normal and frame go to `feats[t]`, and only the indices
+    // of the best are selected: selecting the vectors themselves compiles to branches. Slot
+    // 0 is what is left when no feature qualifies: `w` itself.
+    poly.feats[0] = (w, V2::zeros(), 0);
+    let (mut best_sd, mut best_sd_at) = (f64::NEG_INFINITY, 0);
+    let (mut best_d2, mut best_at) = (f64::INFINITY, 0);
+    let mut keep = |feats: &mut [(V2, V2, usize)], t, sd: f64, normal: V2, c: V2, w: V2, neg| {
+        feats[t] = (c, normal, neg);
+        let better = sd > best_sd;
+        best_sd = if better { sd } else { best_sd };
+        best_sd_at = if better { t } else { best_sd_at };
+        let d2 = (w - c).norm_squared();
+        let d2 = if sd > margin { d2 } else { f64::INFINITY };
+        let closer = d2 < best_d2;
+        best_d2 = if closer { d2 } else { best_d2 };
+        best_at = if closer { t } else { best_at };
+    };
+    let run_start = run.vertex(&poly.edges);
+    let count = count.min(MAX_VERTICES);
+    let PairScratch { edges, feats } = poly;
+    for t in 1..count + 1 {
+        let (k, neg) = (run.index(), run.neg);
+        let (p, w) = frame[neg];
+        let (e, to) = (&edges[k], edges[k + 1].v);
+        let start = (p + e.v) * scale;
+        let edge = (to - e.v) * scale;
+        let e2 = edge.norm_squared();
+        let t_edge = ((w - start).dot(&edge) / e2).clamp(0.0, 1.0);
+        let t_edge = if e2 > 0.0 { t_edge } else { 0.0 };
+        let sd = w.dot(&e.n) - scale * e.h[neg];
+        keep(feats, t, sd, e.n, start + t_edge * edge, w, neg);
+        run.advance();
     }
-    for &(start, dir, normal) in legs {
-        if (w - start).dot(&normal) > margin {
+    if legs {
+        let (start, end) = (p + run_start, p + run.vertex(edges));
+        for (t, (dir, normal)) in [
+            (start, unit(left_normal(start))),
+            (end, unit(right_normal(end))),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let start = dir * scale;
             let e2 = dir.norm_squared();
-            let t = if e2 > 0.0 {
-                ((w - start).dot(&dir) / e2).max(0.0)
-            } else {
-                0.0
-            };
-            let c = start + t * dir;
-            let d2 = (w - c).norm_squared();
-            if d2 < best_d2 {
-                best_d2 = d2;
-                best = (c, normal);
-            }
+            let t_ray = ((w - start).dot(&dir) / e2).max(0.0);
+            let t_ray = if e2 > 0.0 { t_ray } else { 0.0 };
+            let sd = (w - start).dot(&normal);
+            keep(feats, count + 1 + t, sd, normal, start + t_ray * dir, w, 0);
         }
     }
-    let (c, fallback) = best;
+    if best_sd == f64::NEG_INFINITY {
+        return Avoidance {
+            u: V2::zeros(),
+            normal: V2::zeros(),
+        };
+    }
+    if best_sd <= 0.0 {
+        let (_, normal, neg) = poly.feats[best_sd_at];
+        let normal = normal * SIGN[neg];
+        return Avoidance {
+            u: -best_sd * normal,
+            normal,
+        };
+    }
+    let (c, fallback, neg) = poly.feats[best_at];
+    let (c, fallback) = (c * SIGN[neg], fallback * SIGN[neg]);
     let d = best_d2.sqrt();
     let normal = if d > 1e-12 { (w - c) / d } else { fallback };
     Avoidance { u: c - w, normal }
@@ -530,6 +618,36 @@ mod tests {
         ) {
             let p = V2::new(angle.cos(), angle.sin()) * dist;
             check(a, a, sides, p, V2::new(w.0, w.1), tau, dt)?;
+        }
+
+        /// The origin within `gap` of P's boundary (apart or overlapping; with `same`, equal
+        /// shapes at a quarter-turn heading, every edge pair parallel), `w` near the cone's
+        /// cap and legs, where the features' distances tie up to rounding.
+        #[test]
+        fn matches_near_contact(
+            a in (0.5f64..40.0, 0.5f64..40.0, 0.0f64..std::f64::consts::TAU),
+            b in (0.5f64..40.0, 0.5f64..40.0, 0.0f64..std::f64::consts::TAU),
+            sides in 3usize..=32,
+            angle in 0.0f64..std::f64::consts::TAU,
+            gap in prop::sample::select(vec![-1e-3, -1e-9, 0.0, 1e-12, 1e-9, 1e-6, 1e-3, 1.0]),
+            wk in 0.0f64..2.0, wt in -1.0f64..1.0,
+            tau in 1.0f64..20.0,
+            dt in prop::sample::select(vec![0.5, 1.0, 2.0]),
+            same in prop::bool::ANY,
+        ) {
+            let b = if same { (a.0, a.1, (a.2 / std::f64::consts::FRAC_PI_2).round() * std::f64::consts::FRAC_PI_2) } else { b };
+            let a = if same { b } else { a };
+            let unit_v = |t: f64| V2::new(t.cos(), t.sin());
+            let pa = Ellipse::new(a.0, a.1, unit_v(a.2)).polygon(sides);
+            let pb = Ellipse::new(b.0, b.1, unit_v(b.2)).polygon(sides);
+            let sum = minkowski_sum(&pb, &pa.negated());
+            let d = unit_v(angle);
+            // The offset along d at which P = p + sum touches the origin.
+            let reach = sum.points().iter().map(|q| -q.dot(&d)).fold(f64::NEG_INFINITY, f64::max);
+            let p = d * (reach + gap);
+            // Around p / tau (the cap), out to the legs.
+            let w = (d * wk + V2::new(-d.y, d.x) * wt) * (reach / tau);
+            check(a, b, sides, p, w, tau, dt)?;
         }
     }
 }
