@@ -133,6 +133,16 @@ pub(crate) struct Bound {
 }
 
 impl Bound {
+    /// `(gap, tol, normal)`, to be stored compactly.
+    pub(crate) fn parts(&self) -> (f64, f64, V2) {
+        (self.gap, self.tol, self.normal)
+    }
+
+    /// The bound from [`Bound::parts`].
+    pub(crate) fn from_parts(gap: f64, tol: f64, normal: V2) -> Self {
+        Self { gap, normal, tol }
+    }
+
     /// The bound for the reverse pair (`p` and `w` negated, the agents swapped).
     pub(crate) fn reversed(&self) -> Self {
         Self {

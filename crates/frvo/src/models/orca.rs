@@ -45,14 +45,40 @@ pub enum Footprint {
     Circle,
 }
 
-/// What the owner of a pair leaves in its neighbour slot (FRVO).
+/// What the owner of a pair leaves in its neighbour slot (FRVO): the pair's avoidance, or,
+/// when the owner's half-plane provably contains the speed disc (`culled`), the cull test's
+/// bound, from which the other agent decides for itself. Both in one shape.
 #[derive(Clone, Copy, Debug)]
-enum Slot {
-    /// The pair's avoidance.
-    Exact(Avoidance),
-    /// The owner's half-plane provably contains the speed disc and was skipped: the cull
-    /// test's bound, from which the other agent decides for itself.
-    Culled(Bound),
+struct Slot {
+    /// The avoidance's `u`, or the bound's `(gap, tol)`.
+    a: V2,
+    /// The avoidance's normal, or the bound's.
+    normal: V2,
+    culled: bool,
+}
+
+impl Slot {
+    fn exact(avoid: Avoidance) -> Self {
+        Self {
+            a: avoid.u,
+            normal: avoid.normal,
+            culled: false,
+        }
+    }
+
+    fn culled(bound: Bound) -> Self {
+        let (gap, tol, normal) = bound.parts();
+        Self {
+            a: V2::new(gap, tol),
+            normal,
+            culled: true,
+        }
+    }
+
+    /// The bound of a culled slot, for the other agent of the pair.
+    fn reversed_bound(&self) -> Bound {
+        Bound::from_parts(self.a.x, self.a.y, self.normal).reversed()
+    }
 }
 
 /// Where a step's phases run.
@@ -118,6 +144,9 @@ struct Block {
     /// earlier agent `j`, else `NONE`.
     mark: Vec<u32>,
     pair: PairScratch,
+    /// Phase 2: the agent's owned slots.
+    owned: Vec<u32>,
+    /// Phase 3: the agent's half-planes.
     lines: Vec<Line>,
     lp: Vec<Line>,
     /// Phase 1 (FRVO): the block's prepared polygons and ellipses, appended to the step's.
@@ -334,7 +363,7 @@ impl Orca {
             // Never read before written: a slot is read only when owned, after its owner wrote it.
             avoid.resize(
                 slots,
-                Slot::Exact(Avoidance {
+                Slot::exact(Avoidance {
                     u: V2::zeros(),
                     normal: V2::zeros(),
                 }),
@@ -502,55 +531,28 @@ impl View<'_> {
         for &(j, t) in incoming {
             block.mark[j as usize] = t;
         }
-        let motion = Motion::new(self.agents[i].vel);
-        for s in self.slots(i) {
-            let j = self.nbr[s] as usize;
-            let t = block.mark[j];
+        // The owned slots first, gathered without a branch (which are owned is data-dependent).
+        let slots = self.slots(i);
+        block.owned.resize(slots.len(), 0);
+        let mut owned = 0;
+        for s in slots {
+            let t = block.mark[self.nbr[s] as usize];
             partner[s - base] = t;
-            if t == NONE {
-                let (p, w) = self.relative(i, j);
-                avoid[s - base] = match cull::cull(&self.pair(i, j, p, w), motion, self.limits) {
-                    Some(bound) => Slot::Culled(bound),
-                    None => Slot::Exact(self.exact(i, j, p, w, &mut block.pair)),
-                };
-            }
+            block.owned[owned] = s as u32;
+            owned += usize::from(t == NONE);
         }
         for &(j, _) in incoming {
             block.mark[j as usize] = NONE;
         }
-    }
-
-    /// Agent `i`'s avoidance of the neighbour in slot `s` (FRVO), or `None` when its
-    /// half-plane provably contains the speed disc.
-    #[inline]
-    fn polygon_avoidance(
-        &self,
-        i: usize,
-        s: usize,
-        motion: Motion,
-        scratch: &mut PairScratch,
-    ) -> Option<Avoidance> {
-        let t = self.partner[s];
-        let slot = self.avoid[if t == NONE { s } else { t as usize }];
-        match (t == NONE, slot) {
-            (true, Slot::Exact(avoid)) => Some(avoid),
-            (true, Slot::Culled(_)) => None,
-            // The negation of the owner's (see `pair_avoidance`).
-            (false, Slot::Exact(r)) => Some(Avoidance {
-                u: -r.u,
-                normal: -r.normal,
-            }),
-            // The owner skipped it: whether `i` may too depends on its own velocity.
-            (false, Slot::Culled(bound)) => {
-                let j = self.nbr[s] as usize;
-                let (p, w) = self.relative(i, j);
-                let pair = self.pair(i, j, p, w);
-                if cull::contains_disc(&pair, &bound.reversed(), motion, self.limits) {
-                    None
-                } else {
-                    Some(self.exact(i, j, p, w, scratch))
-                }
-            }
+        let motion = Motion::new(self.agents[i].vel);
+        for &s in &block.owned[..owned] {
+            let s = s as usize;
+            let j = self.nbr[s] as usize;
+            let (p, w) = self.relative(i, j);
+            avoid[s - base] = match cull::cull(&self.pair(i, j, p, w), motion, self.limits) {
+                Some(bound) => Slot::culled(bound),
+                None => Slot::exact(self.exact(i, j, p, w, &mut block.pair)),
+            };
         }
     }
 
@@ -561,30 +563,70 @@ impl View<'_> {
         if !self.valid[i] {
             return (pref, false);
         }
-        let motion = Motion::new(a.vel);
-        block.lines.clear();
-        for s in self.slots(i) {
-            let j = self.nbr[s] as usize;
-            let avoid = match self.footprint {
-                Footprint::Ellipse => match self.polygon_avoidance(i, s, motion, &mut block.pair) {
-                    Some(avoid) => avoid,
-                    None => continue, // never binds: the LP is the same without it
-                },
-                Footprint::Circle => {
+        match self.footprint {
+            Footprint::Ellipse => self.polygon_lines(i, block),
+            Footprint::Circle => {
+                block.lines.clear();
+                for s in self.slots(i) {
+                    let j = self.nbr[s] as usize;
                     let (p, w) = self.relative(i, j);
                     let r = self.radii[i] + self.radii[j];
-                    avoidance_circle(p, r, w, self.params.time_horizon, self.dt)
+                    let avoid = avoidance_circle(p, r, w, self.params.time_horizon, self.dt);
+                    if let Some(line) = usable(reciprocal_line(a.vel, avoid)) {
+                        block.lines.push(line);
+                    }
                 }
-            };
-            let line = reciprocal_line(a.vel, avoid);
-            if is_finite(line.point) && line.dir.norm_squared() > 0.5 {
-                block.lines.push(line);
             }
         }
         let sol = lp::solve(&block.lines, self.params.max_speed, pref, &mut block.lp);
         let ok = is_finite(sol.velocity);
         (if ok { sol.velocity } else { pref }, ok && sol.feasible)
     }
+
+    /// Agent `i`'s half-planes (FRVO) into `block.lines`, in slot order: its own pairs', the
+    /// negation of its partners', none where its half-plane provably contains the speed disc.
+    fn polygon_lines(&self, i: usize, block: &mut Block) {
+        let vel = self.agents[i].vel;
+        let motion = Motion::new(vel);
+        block.lines.clear();
+        for s in self.slots(i) {
+            let t = self.partner[s];
+            let own = t == NONE;
+            let slot = self.avoid[if own { s } else { t as usize }];
+            let avoid = match (own, slot.culled) {
+                (true, false) => Avoidance {
+                    u: slot.a,
+                    normal: slot.normal,
+                },
+                (true, true) => continue, // never binds: the LP is the same without it
+                // The negation of the owner's (see `pair_avoidance`).
+                (false, false) => Avoidance {
+                    u: -slot.a,
+                    normal: -slot.normal,
+                },
+                // The owner skipped it: whether `i` may too depends on its own velocity.
+                (false, true) => {
+                    let j = self.nbr[s] as usize;
+                    let (p, w) = self.relative(i, j);
+                    let pair = self.pair(i, j, p, w);
+                    if cull::contains_disc(&pair, &slot.reversed_bound(), motion, self.limits) {
+                        continue;
+                    }
+                    self.exact(i, j, p, w, &mut block.pair)
+                }
+            };
+            if let Some(line) = usable(reciprocal_line(vel, avoid)) {
+                block.lines.push(line);
+            }
+        }
+    }
+}
+
+/// The half-plane if usable: finite, with a unit direction (a degenerate avoidance has a zero
+/// normal).
+#[inline]
+fn usable(line: Line) -> Option<Line> {
+    (is_finite(line.point) && line.dir.norm_squared() > 0.5).then_some(line)
 }
 
 /// Larger of two sizes, ignoring a non-finite one.
