@@ -115,35 +115,38 @@ impl NeighborGrid {
     /// Up to `max` agents other than `me` strictly within the radius of `positions[me]`, nearest
     /// first (equal distances by index), as (squared distance, index) in `out`.
     pub fn query(&self, positions: &[V2], me: usize, max: usize, out: &mut Vec<(f64, usize)>) {
-        out.clear();
         if self.nx == 0 || max == 0 || self.radius <= 0.0 {
+            out.clear();
             return;
         }
         let p = positions[me];
         if !(p.x.is_finite() && p.y.is_finite()) {
+            out.clear();
             return;
         }
+        // A few more than `max`, so that the first disc rarely falls short.
+        let want = max as f64 + (max as f64).sqrt() + 2.0;
+        // The agents found are written after `out[..front]`, over whatever `out` holds: room
+        // to sort them into, which the first disc nearly always leaves enough of (`out` is
+        // sized for `front` of them, and grows where a disc finds more).
+        let front = (want + want.sqrt()).min(FILED as f64) as usize;
+        out.resize(2 * front + 16, (0.0, 0));
         // Every agent lies within sqrt(far2) of p: a disc wider than that finds them all.
         let far = (p - self.min).abs().sup(&(self.max - p).abs());
         let far2 = far.norm_squared();
-        // A few more than `max`, so that the first disc rarely falls short.
-        let want = max as f64 + (max as f64).sqrt() + 2.0;
         let mut r = self.first_radius(p, want).max(self.cell).min(self.radius);
         loop {
-            let mut disc = Disc::new(p, r, me, want, max);
-            out.resize(disc.front, (0.0, 0));
-            self.collect(&mut disc, out);
+            let mut disc = Disc::new(p, r, me, want);
+            let found = self.collect(&mut disc, out, front);
             // With `max` agents within r <= radius, any agent outside is farther than all of
             // them: they are the nearest `max`.
-            let found = out.len() - disc.front;
             if found >= max || r >= self.radius || r * r > far2 {
-                disc.sort(out, max);
+                disc.sort(out, front, found, max);
                 return;
             }
             // Wider by the density found (at least by half), to hold `want` this time.
             let grow = (want / (found + 1) as f64).sqrt().max(1.5);
             r = (r * grow).min(self.radius);
-            out.clear();
         }
     }
 
@@ -163,10 +166,10 @@ impl NeighborGrid {
         }
     }
 
-    /// Appends the agents within the disc (other than its `me`) to `out`, unordered, and files
-    /// them in the disc's buckets.
-    fn collect(&self, disc: &mut Disc, out: &mut Vec<(f64, usize)>) {
-        let (p, r2, me, scale, front) = (disc.p, disc.r2, disc.me, disc.scale, disc.front);
+    /// Writes the agents within the disc (other than its `me`) to `out[front..]`, unordered,
+    /// counts them by bucket, and returns how many.
+    fn collect(&self, disc: &mut Disc, out: &mut Vec<(f64, usize)>, front: usize) -> usize {
+        let (p, r2, me) = (disc.p, disc.r2, disc.me);
         let local = (p - self.min) / self.cell;
         // A hair wider, so that rounding cannot drop a cell that holds an agent within r.
         let reach = r2.sqrt() / self.cell * (1.0 + 1e-9);
@@ -177,7 +180,8 @@ impl NeighborGrid {
             (lo.max(0.0).min(top) as u32, hi.max(0.0).min(top) as u32)
         };
         let (y0, y1) = cells(local.y - reach, local.y + reach, self.ny);
-        for iy in y0 as usize..=y1 as usize {
+        let mut end = front;
+        for iy in y0 as usize..y1 as usize + 1 {
             // The disc's half-width (in cells) at the row's nearest edge to p: the cells of the
             // row within it are contiguous in `items`, so they are read as one slice.
             let gap = axis_gap(local.y, iy);
@@ -190,42 +194,43 @@ impl NeighborGrid {
             let row = iy * self.nx;
             let slice = &self.items[self.starts[row + x0 as usize] as usize
                 ..self.starts[row + x1 as usize + 1] as usize];
+            if out.len() < end + slice.len() {
+                out.resize(2 * (end + slice.len()), (0.0, 0));
+            }
+            // Every candidate is written and counted in its bucket, and kept by advancing `end`:
+            // many lie outside the disc (a fifth to a third in the benchmark's crowd), in no
+            // order that a branch predictor could learn.
             for &(q, j) in slice {
                 let d2 = (q - p).norm_squared();
-                if d2 < r2 && j as usize != me {
-                    let i = out.len() - front;
-                    if i < FILED {
-                        // Adding 2^52 rounds a number in [0, 2^52) to an integer in the low
-                        // mantissa bits: monotone, as a conversion to an integer is, and
-                        // cheaper. Within the disc, b <= buckets <= BUCKETS.
-                        let b = ((d2 * scale + ROUND).to_bits() - ROUND.to_bits()) as usize;
-                        let b = b.min(BUCKETS);
-                        disc.next[i] = disc.head[b];
-                        disc.head[b] = i as u8;
-                    }
-                    out.push((d2, j as usize));
-                }
+                let b = disc.bucket(d2);
+                let keep = (d2 < r2) & (j as usize != me);
+                out[end] = (d2, j as usize);
+                // Wrapping past 255 agents, which are sorted without the buckets.
+                disc.count[b as usize] = disc.count[b as usize].wrapping_add(u8::from(keep));
+                end += usize::from(keep);
             }
         }
+        end - front
     }
 }
 
-/// Most buckets of a disc (plus one: agents at the disc's edge may round up to it).
-const BUCKETS: usize = 128;
-/// Buckets per agent wanted: a few agents in a bucket cost less to order than more buckets
-/// to visit.
-const BUCKETS_PER_AGENT: f64 = 0.5;
-/// The end of a bucket's list.
-const NONE: u8 = u8::MAX;
-/// Most agents filed in buckets: more are sorted whole.
-const FILED: usize = NONE as usize;
-/// See `collect`.
+/// Most buckets of a disc, less one (agents at the disc's edge may round up to one more): the
+/// 256 counts of a disc take any `u8` as a bucket.
+const BUCKETS: usize = 254;
+/// Buckets per agent wanted: enough that few agents share a bucket with a nearer one (each
+/// costs a mispredicted branch or two to move), at about an instruction per bucket.
+const BUCKETS_PER_AGENT: f64 = 4.0;
+/// Most agents ordered by buckets (their positions are `u8`): more are sorted whole.
+const FILED: usize = u8::MAX as usize;
+/// See `Disc::bucket`.
 const ROUND: f64 = (1u64 << 52) as f64;
+/// A `u8` in every byte of a `u64`.
+const BYTES: u64 = 0x0101_0101_0101_0101;
 
-/// A search disc around `p` (for agent `me`) and the agents found within it, filed in buckets
-/// of equal width in squared distance: agents spread evenly over the disc spread evenly over
-/// the buckets, a few in each, so that ordering them is little more than reading the buckets in
-/// turn.
+/// A search disc around `p` (for agent `me`), whose agents are ordered by buckets of equal width
+/// in squared distance: agents spread evenly over the disc spread evenly over the buckets, so
+/// that a counting sort by bucket leaves little to order. Loop ends aside, only that little
+/// ordering branches on the data.
 struct Disc {
     p: V2,
     r2: f64,
@@ -233,15 +238,12 @@ struct Disc {
     /// Buckets per unit of squared distance.
     scale: f64,
     buckets: usize,
-    /// `out[..front]` is room for the nearest, and the agents found follow.
-    front: usize,
-    /// Bucket `b` lists the agents `head[b]`, `next[head[b]]`, ... (`i` is `out[front + i]`).
-    head: [u8; BUCKETS + 1],
-    next: [u8; FILED + 1],
+    /// Agents found per bucket (then where each bucket starts, then ends, in `Disc::sort`).
+    count: [u8; BUCKETS + 2],
 }
 
 impl Disc {
-    fn new(p: V2, r: f64, me: usize, want: f64, max: usize) -> Self {
+    fn new(p: V2, r: f64, me: usize, want: f64) -> Self {
         let r2 = r * r;
         let buckets = ((want * BUCKETS_PER_AGENT) as usize).clamp(1, BUCKETS);
         let scale = buckets as f64 / r2;
@@ -252,21 +254,28 @@ impl Disc {
             // Infinite only for a tiny r2: all in one bucket then.
             scale: if scale.is_finite() { scale } else { 0.0 },
             buckets,
-            // One spare, so that inserting into a full front needs no check.
-            front: max.min(FILED) + 1,
-            head: [NONE; BUCKETS + 1],
-            next: [NONE; FILED + 1],
+            count: [0; BUCKETS + 2],
         }
     }
 
-    /// Replaces `out` (room for the nearest, then the agents found) with the nearest `max`
-    /// agents found, nearest first (equal distances by index).
-    fn sort(&self, out: &mut Vec<(f64, usize)>, max: usize) {
+    /// The bucket of squared distance `d2`: at most `buckets` where `d2` < `r2` (rounding may
+    /// reach the last), and any `u8` beyond.
+    #[inline]
+    fn bucket(&self, d2: f64) -> u8 {
+        // Adding 2^52 rounds a number in [0, 2^52) to an integer in the low mantissa bits:
+        // monotone, as a conversion to an integer is, and cheaper. Not clamped: that would
+        // cost a branch, and agents beyond the disc are not counted.
+        ((d2 * self.scale + ROUND).to_bits() - ROUND.to_bits()) as u8
+    }
+
+    /// Replaces `out` (room, up to `front`, then the `found` agents found) with the nearest
+    /// `max` agents found, nearest first (equal distances by index).
+    fn sort(&mut self, out: &mut Vec<(f64, usize)>, front: usize, found: usize, max: usize) {
         // Squared distances are >= +0 and never NaN (finite positions), so their bit patterns
         // order like the numbers: (bits, index) is the total order "nearest, then lower index".
-        let key = |x: &(f64, usize)| (x.0.to_bits(), x.1);
-        let (front, found) = (self.front, out.len() - self.front);
+        let key = |x: &(f64, usize)| (u128::from(x.0.to_bits()) << 64) | x.1 as u128;
         if found > FILED {
+            out.truncate(front + found);
             out.drain(..front);
             if found > max {
                 out.select_nth_unstable_by_key(max - 1, key);
@@ -275,41 +284,66 @@ impl Disc {
             out.sort_unstable_by_key(key);
             return;
         }
-        // Bucket by bucket, nearest first, until `max` are placed: each agent is inserted among
-        // those placed, of which only the ones of its bucket can be farther.
-        let (placed, agents) = out.split_at_mut(front);
-        let full = front - 1;
-        let mut n = 0;
-        for &first in &self.head[..=self.buckets] {
-            let mut i = first;
-            let start = n;
-            while i != NONE {
-                let x = agents[i as usize];
-                let mut at = n;
-                while at > start && key(&x) < key(&placed[at - 1]) {
-                    placed[at] = placed[at - 1];
-                    at -= 1;
+        // Counts to starts, eight at a time: no sum exceeds `found` <= 255, so no byte carries
+        // into the next, and multiplying by `BYTES` sums each byte and those below it.
+        let mut sum = 0;
+        for word in self.count.chunks_exact_mut(8).take(self.buckets / 8 + 1) {
+            let counts = u64::from_le_bytes((&*word).try_into().unwrap());
+            let through = counts.wrapping_mul(BYTES);
+            word.copy_from_slice(&((through << 8) + sum * BYTES).to_le_bytes());
+            sum += through >> 56;
+        }
+        // A counting sort by bucket into the room, or after the agents where it is too small.
+        let to = if found <= front { 0 } else { front + found };
+        if out.len() < to + found {
+            out.resize(to + found, (0.0, 0));
+        }
+        let (sorted, agents) = if to == 0 {
+            let (room, agents) = out.split_at_mut(front);
+            (&mut room[..found], &agents[..found])
+        } else {
+            let (agents, rest) = out[front..].split_at_mut(found);
+            (&mut rest[..found], &*agents)
+        };
+        for x in agents {
+            let at = &mut self.count[self.bucket(x.0) as usize];
+            sorted[*at as usize] = *x;
+            *at += 1;
+        }
+        let max = max.min(found);
+        if max > 0 {
+            // Insertion: an agent can be out of order only among the few of its bucket, and only
+            // the buckets up to the one of the `max`-th agent need ordering (`count[b]` is now
+            // the end of bucket `b`). The test for order is the one data-dependent branch.
+            let end = self.count[self.bucket(sorted[max - 1].0) as usize] as usize;
+            let sorted = &mut sorted[..end];
+            for i in 1..end {
+                let x = sorted[i];
+                if key(&x) < key(&sorted[i - 1]) {
+                    let mut at = i;
+                    while at > 0 && key(&x) < key(&sorted[at - 1]) {
+                        sorted[at] = sorted[at - 1];
+                        at -= 1;
+                    }
+                    sorted[at] = x;
                 }
-                placed[at] = x;
-                n = (n + 1).min(full);
-                i = self.next[i as usize];
-            }
-            if n == full {
-                break;
             }
         }
-        out.truncate(n);
+        if to > 0 {
+            out.copy_within(to..to + max, 0);
+        }
+        out.truncate(max);
     }
 }
 
 /// Distance (in cells) from coordinate `x` (in cells) to the nearest point of cell `i`.
 #[inline]
 fn axis_gap(x: f64, i: usize) -> f64 {
-    let lo = i as f64;
-    if x < lo {
-        lo - x
-    } else if x > lo + 1.0 {
-        x - lo - 1.0
+    let (before, after) = (i as f64 - x, x - i as f64 - 1.0);
+    // Selects (`maxsd`), not branches or `f64::max` (which also orders NaNs).
+    let gap = if before > after { before } else { after };
+    if gap > 0.0 {
+        gap
     } else {
         0.0
     }
@@ -411,7 +445,8 @@ mod tests {
         }
     }
 
-    /// More agents within a disc than the buckets take: sorted whole.
+    /// More agents within a disc than the buckets take: sorted whole. Fewer, but more than the
+    /// room in front of them: sorted after them.
     #[test]
     fn crowded_discs() {
         // A dense 20 x 20 lattice, and one agent far away that makes the crowd look sparse.
@@ -423,6 +458,12 @@ mod tests {
         for max in [1, 5, 254, 255, 256, 300, usize::MAX] {
             check(&positions, &valid, 1e6, max).unwrap();
             check(&positions[..400], &valid[..400], 12.0, max).unwrap();
+        }
+        // A 20 x 5 block of it: the first disc holds all 100.
+        let mut block = positions[..100].to_vec();
+        block.push(positions[400]);
+        for max in [1, 5, 50, 99, 100, 200] {
+            check(&block, &valid[..block.len()], 1e6, max).unwrap();
         }
     }
 }
