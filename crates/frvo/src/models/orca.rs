@@ -3,7 +3,7 @@
 //!
 //! A step runs in three phases over contiguous blocks of agents, each block on one thread
 //! when the crowd is large enough (see [`MotionParams::threads`]):
-//! 1. each agent's neighbours (the grid is read-only);
+//! 1. each agent's polygon and ellipse (FRVO) and its neighbours (the grid is read-only);
 //! 2. (FRVO) the pairs each agent owns: of a pair that both agents list, the earlier agent
 //!    computes the avoidance (or the cull bound) once, for both;
 //! 3. each agent's half-planes (its own pairs, the negated reverse ones) and its LP.
@@ -140,9 +140,6 @@ struct Block {
     list: Vec<u32>,
     ends: Vec<u32>,
     found: Vec<(f64, usize)>,
-    /// Phase 2, while agent `i` is processed: `mark[j]` is the slot of `i` in the list of an
-    /// earlier agent `j`, else `NONE`.
-    mark: Vec<u32>,
     pair: PairScratch,
     /// Phase 2: the agent's owned slots.
     owned: Vec<u32>,
@@ -198,12 +195,6 @@ pub struct Orca {
     /// Neighbours of agent `i`, nearest first: `nbr[nbr_start[i]..nbr_start[i + 1]]`.
     nbr_start: Vec<u32>,
     nbr: Vec<u32>,
-    /// The neighbour lists transposed to earlier agents: agent `i`'s entries
-    /// `rev[rev_start[i]..rev_start[i + 1]]` are `(j, t)` with `j < i` and `nbr[t] == i`, so the
-    /// reverse pair is found without searching `j`'s list.
-    rev_start: Vec<u32>,
-    rev: Vec<(u32, u32)>,
-    fill: Vec<u32>,
     /// Per neighbour slot (FRVO): the slot of the same pair in an earlier agent's list, which
     /// owns it, else `NONE`; and, for owned slots, what the owner computed.
     partner: Vec<u32>,
@@ -231,9 +222,6 @@ impl Orca {
             limits: Limits::new(params.time_horizon, params.max_speed, params.polygon_sides),
             nbr_start: Vec::new(),
             nbr: Vec::new(),
-            rev_start: Vec::new(),
-            rev: Vec::new(),
-            fill: Vec::new(),
             partner: Vec::new(),
             avoid: Vec::new(),
             feasible: Vec::new(),
@@ -271,10 +259,6 @@ impl Orca {
         self.blocks.resize_with(count, Block::default);
         for (b, block) in self.blocks.iter_mut().enumerate() {
             block.agents = b * n / count..(b + 1) * n / count;
-            if block.mark.len() != n {
-                block.mark.clear();
-                block.mark.resize(n, NONE);
-            }
         }
     }
 
@@ -318,39 +302,6 @@ impl Orca {
                 self.bodies.extend_from_slice(&block.bodies);
             }
         }
-    }
-
-    /// Transposes the neighbour lists onto later agents (see `rev`): O(pairs), where searching
-    /// `j`'s list for every pair cost O(pairs x neighbours).
-    fn transpose_neighbors(&mut self) {
-        let n = self.positions.len();
-        self.rev_start.clear();
-        self.rev_start.resize(n + 1, 0);
-        // Whether a listed neighbour comes later is data-dependent: counted and written
-        // without branches (an earlier one is written to a spare last entry, then dropped).
-        for j in 0..n {
-            for &i in &self.nbr[self.nbr_start[j] as usize..self.nbr_start[j + 1] as usize] {
-                self.rev_start[i as usize + 1] += u32::from((j as u32) < i);
-            }
-        }
-        for i in 0..n {
-            self.rev_start[i + 1] += self.rev_start[i];
-        }
-        let total = self.rev_start[n] as usize;
-        self.rev.clear();
-        self.rev.resize(total + 1, (0, 0));
-        self.fill.clear();
-        self.fill.extend_from_slice(&self.rev_start[..n]);
-        for j in 0..n {
-            for t in self.nbr_start[j]..self.nbr_start[j + 1] {
-                let i = self.nbr[t as usize] as usize;
-                let later = j < i;
-                let at = if later { self.fill[i] as usize } else { total };
-                self.rev[at] = (j as u32, t);
-                self.fill[i] += u32::from(later);
-            }
-        }
-        self.rev.truncate(total);
     }
 
     /// Phase 2 (FRVO): every slot's partner, and the pairs each agent owns.
@@ -434,8 +385,6 @@ impl Orca {
             valid: &self.valid,
             nbr_start: &self.nbr_start,
             nbr: &self.nbr,
-            rev_start: &self.rev_start,
-            rev: &self.rev,
             partner,
             avoid,
             shapes: &self.shapes,
@@ -459,8 +408,6 @@ struct View<'a> {
     valid: &'a [bool],
     nbr_start: &'a [u32],
     nbr: &'a [u32],
-    rev_start: &'a [u32],
-    rev: &'a [(u32, u32)],
     partner: &'a [u32],
     avoid: &'a [Slot],
     shapes: &'a Shapes,
@@ -527,22 +474,25 @@ impl View<'_> {
         avoid: &mut [Slot],
         base: usize,
     ) {
-        let incoming = &self.rev[self.rev_start[i] as usize..self.rev_start[i + 1] as usize];
-        for &(j, t) in incoming {
-            block.mark[j as usize] = t;
-        }
-        // The owned slots first, gathered without a branch (which are owned is data-dependent).
+        // Each slot's partner: where an earlier neighbour `j` lists `i` (a later one's list is
+        // searched as empty). Then the owned slots, gathered without a branch (which are owned
+        // is data-dependent).
         let slots = self.slots(i);
         block.owned.resize(slots.len(), 0);
         let mut owned = 0;
         for s in slots {
-            let t = block.mark[self.nbr[s] as usize];
+            let j = self.nbr[s] as usize;
+            let list = self.slots(j);
+            let end = if j < i { list.end } else { list.start };
+            let at = position(&self.nbr[list.start..end], i as u32);
+            let t = if at == NONE {
+                NONE
+            } else {
+                list.start as u32 + at
+            };
             partner[s - base] = t;
             block.owned[owned] = s as u32;
             owned += usize::from(t == NONE);
-        }
-        for &(j, _) in incoming {
-            block.mark[j as usize] = NONE;
         }
         let motion = Motion::new(self.agents[i].vel);
         for &s in &block.owned[..owned] {
@@ -620,6 +570,18 @@ impl View<'_> {
             }
         }
     }
+}
+
+/// Where `x` is in `list` (listed at most once), else `NONE`. Without branches, so that the
+/// compiler can vectorise it: the matching position plus one is summed, zero where none matches.
+#[inline]
+fn position(list: &[u32], x: u32) -> u32 {
+    let found: u32 = list
+        .iter()
+        .zip(1u32..)
+        .map(|(&y, k)| if y == x { k } else { 0 })
+        .sum();
+    found.wrapping_sub(1)
 }
 
 /// The half-plane if usable: finite, with a unit direction (a degenerate avoidance has a zero
@@ -702,7 +664,6 @@ impl Orca {
         self.make_blocks(n, parallel);
         self.gather(agents, parallel);
         if self.footprint == Footprint::Ellipse {
-            self.transpose_neighbors();
             self.own_pairs(agents, dt, parallel);
         }
         self.solve_all(agents, dt, parallel)
