@@ -77,6 +77,7 @@ def test_shapes_and_dtypes() -> None:
         ({"polygon_sides": 2}, ParameterError),
         ({"max_speed": float("inf")}, ParameterError),
         ({"threads": -1}, OverflowError),
+        ({"threads": 100_000}, ParameterError),
     ],
 )
 def test_bad_input_raises(kwargs: dict[str, Any], exc: type[Exception]) -> None:

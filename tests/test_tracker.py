@@ -197,6 +197,8 @@ def test_default_thresholds_low_scores_extend_tracks_but_start_none() -> None:
         {"det_threshold": True},
         {"max_speed": -1.0},
         {"output_lost": -1},
+        {"threads": -1},
+        {"threads": 100_000},
     ],
 )
 def test_bad_parameters_raise(params: dict[str, object]) -> None:

@@ -347,6 +347,14 @@ impl TrackerParams {
         if m.polygon_sides < 3 {
             return Err(bad("polygon_sides", "must be >= 3"));
         }
+        if m.threads > frvo::model::MAX_THREADS {
+            let why = format!(
+                "must be in 0..={} (0: every core), got {}",
+                frvo::model::MAX_THREADS,
+                m.threads
+            );
+            return Err(bad("threads", &why));
+        }
         Ok(())
     }
 }

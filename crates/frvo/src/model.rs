@@ -73,6 +73,10 @@ impl Default for MotionParams {
     }
 }
 
+/// Most threads a step may ask for: more could only cost (and a typo like 100000 would try
+/// to start that many).
+pub const MAX_THREADS: usize = 1024;
+
 /// Largest finite speed the solver works with (keeps the disc arithmetic finite).
 const SPEED_CAP: f64 = 1e9;
 
@@ -118,6 +122,12 @@ impl MotionParams {
                 self.sf_strength
             ));
         }
+        if self.threads > MAX_THREADS {
+            bad.push(format!(
+                "threads must be in 0..={MAX_THREADS} (0: every core), got {}",
+                self.threads
+            ));
+        }
         if bad.is_empty() {
             Ok(())
         } else {
@@ -157,7 +167,7 @@ impl MotionParams {
                 d.sf_strength
             },
             sf_range: positive(self.sf_range, d.sf_range),
-            threads: self.threads,
+            threads: self.threads.min(MAX_THREADS),
         }
     }
 }
