@@ -39,9 +39,9 @@ ellipse_w_scale             0.15     FRVO ellipse w = scale * box width (kept sm
 output_lost                 5        also report tracks (at the motion model's prediction) this
                                      many frames after their last match
 neighbor_radius, max_neighbors, time_horizon, max_speed, polygon_sides: the motion model's.
-threads                     0        threads for the motion model's step: 0 = every core (only
-                                     crowds of thousands of neighbour pairs use them), 1 = the
-                                     calling thread; results are the same whatever the number
+threads                     0        threads for the motion model's step (at most 1024): 0 =
+                                     every core, used from 1,000 agent-neighbour pairs up; 1 =
+                                     the calling thread; results are the same whatever the number
 ==========================  =======  ===========================================================
 
 Score thresholds are for scores in [0, 1], as our detectors give and as
