@@ -111,8 +111,8 @@ impl Threads {
     }
 
     /// Runs `body` on one of this pool's threads when `parallel` (so that the phases inside
-    /// it hand work between the pool's threads, which stay awake between phases, instead of
-    /// waking the caller after each), else on the caller's thread.
+    /// it hand work between the pool's threads, and the caller waits once per step rather
+    /// than once per phase), else on the caller's thread.
     fn install<R: Send>(&self, parallel: bool, body: impl FnOnce() -> R + Send) -> R {
         match self {
             Self::Pool(pool) if parallel => pool.install(body),
