@@ -322,17 +322,16 @@ impl Orca {
         }
         let mut blocks = std::mem::take(&mut self.blocks);
         let view = self.view(agents, dt, &[], &[]);
-        let mut work = Vec::with_capacity(blocks.len());
-        let (mut partner_rest, mut avoid_rest) = (&mut partner[..], &mut avoid[..slots]);
-        for block in &mut blocks {
-            let range = view.slots_of(&block.agents);
-            let (p, rest) = std::mem::take(&mut partner_rest).split_at_mut(range.len());
-            partner_rest = rest;
-            let (a, rest) = std::mem::take(&mut avoid_rest).split_at_mut(range.len());
-            avoid_rest = rest;
-            work.push((block, p, a, range.start));
-        }
-        Threads::for_each(parallel, work, |(block, partner, avoid, base)| {
+        // Each block's slots: its agents' lists are contiguous.
+        let ranges: Vec<Range<usize>> = blocks.iter().map(|b| view.slots_of(&b.agents)).collect();
+        let lens = || ranges.iter().map(|r| r.len());
+        let work: Vec<_> = blocks
+            .iter_mut()
+            .zip(split_mut(&mut partner, lens()))
+            .zip(split_mut(&mut avoid[..slots], lens()))
+            .zip(ranges.iter().map(|r| r.start))
+            .collect();
+        Threads::for_each(parallel, work, |(((block, partner), avoid), base)| {
             for i in block.agents.clone() {
                 view.own_pairs(i, block, partner, avoid, base);
             }
@@ -349,17 +348,13 @@ impl Orca {
         feasible.resize(n, false);
         let mut blocks = std::mem::take(&mut self.blocks);
         let view = self.view(agents, dt, &self.partner, &self.avoid);
-        let mut work = Vec::with_capacity(blocks.len());
-        let (mut vel_rest, mut ok_rest) = (&mut out[..], &mut feasible[..]);
-        for block in &mut blocks {
-            let len = block.agents.len();
-            let (v, rest) = std::mem::take(&mut vel_rest).split_at_mut(len);
-            vel_rest = rest;
-            let (f, rest) = std::mem::take(&mut ok_rest).split_at_mut(len);
-            ok_rest = rest;
-            work.push((block, v, f));
-        }
-        Threads::for_each(parallel, work, |(block, vel, ok)| {
+        let lens: Vec<usize> = blocks.iter().map(|b| b.agents.len()).collect();
+        let work: Vec<_> = blocks
+            .iter_mut()
+            .zip(split_mut(&mut out, lens.iter().copied()))
+            .zip(split_mut(&mut feasible, lens.iter().copied()))
+            .collect();
+        Threads::for_each(parallel, work, |((block, vel), ok)| {
             let first = block.agents.start;
             for i in block.agents.clone() {
                 (vel[i - first], ok[i - first]) = view.solve(i, block);
@@ -570,6 +565,17 @@ impl View<'_> {
             }
         }
     }
+}
+
+/// `slice` cut into consecutive pieces of the given lengths (one per block), so that each
+/// block's thread gets its own.
+fn split_mut<T>(mut slice: &mut [T], lens: impl Iterator<Item = usize>) -> Vec<&mut [T]> {
+    lens.map(|len| {
+        let (piece, rest) = std::mem::take(&mut slice).split_at_mut(len);
+        slice = rest;
+        piece
+    })
+    .collect()
 }
 
 /// Where `x` is in `list` (listed at most once), else `NONE`. Without branches, so that the
