@@ -557,7 +557,12 @@ impl View<'_> {
                     if cull::contains_disc(&pair, &slot.reversed_bound(), motion, self.limits) {
                         continue;
                     }
-                    self.exact(i, j, p, w, &mut block.pair)
+                    // As its owner would have computed it, negated: one side per pair.
+                    let avoid = self.exact(j, i, -p, -w, &mut block.pair);
+                    Avoidance {
+                        u: -avoid.u,
+                        normal: -avoid.normal,
+                    }
                 }
             };
             if let Some(line) = usable(reciprocal_line(vel, avoid)) {
