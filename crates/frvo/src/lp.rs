@@ -33,6 +33,11 @@ pub struct Solution {
     /// False when the half-planes and the disc have no common point; `velocity` then minimises
     /// the largest violation.
     pub feasible: bool,
+    /// When infeasible, the largest violation reached (the min-max level; up to rounding, no
+    /// line is violated by more at `velocity`): appending a line whose violation at
+    /// `velocity` is at most this leaves the solution unchanged, bit for bit. Zero when
+    /// feasible.
+    pub violation: f64,
 }
 
 /// Velocity closest to `pref` in all half-planes and `|v| <= max_speed` (or the min-max
@@ -41,15 +46,17 @@ pub fn solve(lines: &[Line], max_speed: f64, pref: V2, scratch: &mut Vec<Line>) 
     let mut v = V2::zeros();
     let failed = lp2(lines, max_speed, pref, false, &mut v);
     if failed < lines.len() {
-        lp3(lines, failed, max_speed, &mut v, scratch);
+        let violation = lp3(lines, failed, max_speed, &mut v, scratch);
         Solution {
             velocity: v,
             feasible: false,
+            violation,
         }
     } else {
         Solution {
             velocity: v,
             feasible: true,
+            violation: 0.0,
         }
     }
 }
@@ -131,8 +138,9 @@ fn lp2(lines: &[Line], radius: f64, opt: V2, direction_opt: bool, out: &mut V2) 
 /// Infeasible case, from line `begin` on: minimise the largest violation `d` (a 3-D LP in
 /// (v, d)). Whenever a line is violated by more than the current `d`, the new optimum has equal
 /// violation of that line and the worst earlier ones: a 2-D LP over the bisectors of that line
-/// and each earlier line, pushing as far as possible into the line's feasible side.
-fn lp3(lines: &[Line], begin: usize, radius: f64, out: &mut V2, projected: &mut Vec<Line>) {
+/// and each earlier line, pushing as far as possible into the line's feasible side. Returns
+/// the level reached: a later line violated by no more than it is skipped.
+fn lp3(lines: &[Line], begin: usize, radius: f64, out: &mut V2, projected: &mut Vec<Line>) -> f64 {
     let mut worst = 0.0;
     for i in begin..lines.len() {
         let line = lines[i];
@@ -166,4 +174,5 @@ fn lp3(lines: &[Line], begin: usize, radius: f64, out: &mut V2, projected: &mut 
         }
         worst = line.violation(*out);
     }
+    worst
 }

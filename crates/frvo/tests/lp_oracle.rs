@@ -259,6 +259,7 @@ proptest! {
         );
         prop_assert!(max_violation(&lines, sol.velocity) <= 1e-9);
         prop_assert!(sol.velocity.norm() <= vmax * (1.0 + 1e-12));
+        prop_assert_eq!(sol.violation, 0.0);
     }
 
     #[test]
@@ -274,5 +275,33 @@ proptest! {
             (worst - reference).abs() <= 1e-6,
             "lp largest violation {} vs clarabel {}", worst, reference
         );
+        prop_assert!(
+            (sol.violation - reference).abs() <= 1e-6,
+            "reported level {} vs clarabel {}", sol.violation, reference
+        );
+    }
+
+    /// Appending a line violated at the min-max optimum by no more than the reported level
+    /// leaves the solution the same bit for bit (the crowd step relies on it to skip far
+    /// neighbours); one violated by more moves it.
+    #[test]
+    fn lines_below_the_level_change_nothing(
+        (lines, vmax, pref) in infeasible_case(),
+        extra in prop::collection::vec((0.0f64..std::f64::consts::TAU, 0.0f64..2.0), 1..6),
+        above in 1e-6f64..1.0,
+    ) {
+        let mut scratch = Vec::new();
+        let sol = solve(&lines, vmax, pref, &mut scratch);
+        prop_assume!(!sol.feasible);
+        // A line through `point = v + k left(dir)` is violated by `k` at `v`.
+        let at = |angle: f64, k: f64| {
+            let dir = unit(angle);
+            Line { point: sol.velocity + V2::new(-dir.y, dir.x) * k, dir }
+        };
+        let mut more = lines.clone();
+        more.extend(extra.iter().map(|&(angle, below)| at(angle, sol.violation - below)));
+        prop_assert_eq!(solve(&more, vmax, pref, &mut scratch), sol);
+        more.push(at(extra[0].0, sol.violation + above));
+        prop_assert_ne!(solve(&more, vmax, pref, &mut scratch), sol);
     }
 }
