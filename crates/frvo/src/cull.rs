@@ -31,6 +31,9 @@
 //!    and neither `g±` is in `N`, then `N` (connected) does not meet `G`: `v_a·n <= c`, and
 //!    `d >= L >= 2 (S + v_a·n)`.
 //!
+//! With a slack `s >= 0` ([`Limits::with_slack`]) the same steps show that the half-plane's
+//! largest violation in the disc, `S + v_a·n - d/2`, is at most `s`: `S` becomes `S - s`.
+//!
 //! Every comparison keeps a relative margin for rounding. Cheap necessary conditions turn most
 //! pairs down before the ellipses are evaluated; turning down is always safe. Step 1 does not
 //! depend on which agent asks (for the reverse pair `m`, `p`, `w` negate and `L` stays): the
@@ -105,7 +108,10 @@ impl Pair<'_> {
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Limits {
     inv_tau: f64,
+    /// The test's disc radius `S`: the speed limit, less the slack (see [`Limits::with_slack`]).
     max_speed: f64,
+    /// Speed scale of the rounding margins: the speed limit plus the slack.
+    scale: f64,
     /// `rho`: the regular polygon circumscribing the unit circle has circumradius
     /// `1/cos(pi/sides)` (a hair more, for rounding).
     rho: f64,
@@ -118,7 +124,22 @@ impl Limits {
         Self {
             inv_tau: 1.0 / tau,
             max_speed,
+            scale: max_speed,
             rho: (1.0 + MARGIN) / (std::f64::consts::PI / sides as f64).cos(),
+        }
+    }
+
+    /// These limits for a weaker question: is the half-plane's largest violation anywhere in
+    /// the speed disc at most `slack >= 0` (rather than 0)? That is the same test with the
+    /// disc's radius `S - slack` (negative when the slack exceeds the speed limit): the
+    /// largest violation is `S + v_a·n - d/2`. The crowd step asks it of far neighbours once
+    /// the near ones' min-max optimum has violation `slack` (see `models::orca`). Made on
+    /// limits from [`Limits::new`]; a zero slack gives them back unchanged.
+    pub(crate) fn with_slack(&self, slack: f64) -> Self {
+        Self {
+            max_speed: self.max_speed - slack,
+            scale: self.scale + slack,
+            ..*self
         }
     }
 }
@@ -228,7 +249,7 @@ fn disc_cone_normal(p: V2, dist2: f64, r: f64, q: V2) -> V2 {
 #[inline]
 pub(crate) fn contains_disc(pair: &Pair, bound: &Bound, a: Motion, limits: &Limits) -> bool {
     let (v, speed) = (a.v, a.speed);
-    let c = 0.5 * bound.gap - limits.max_speed - MARGIN * (limits.max_speed + speed);
+    let c = 0.5 * bound.gap - limits.max_speed - MARGIN * (limits.scale + speed);
     if !(v.dot(&bound.normal) < c) {
         return false;
     }
@@ -293,6 +314,8 @@ mod tests {
         tau: f64,
         dt: f64,
         max_speed: f64,
+        /// The violation agents may leave (see [`Limits::with_slack`]): zero in half the cases.
+        slack: f64,
     }
 
     /// A cull decision to check: `Some` for "the half-plane of agent 0 contains the disc".
@@ -303,7 +326,8 @@ mod tests {
     }
 
     /// How far the exact half-plane of agent 0 (`v_a`) is from containing the speed disc
-    /// (negative: it contains it), from the plain obstacle of `p`, `w` and the polygons.
+    /// (negative: it contains it), which is its largest violation in the disc, from the plain
+    /// obstacle of `p`, `w` and the polygons.
     fn excess(c: &Case, p: V2, w: V2, v_a: V2, a: usize) -> f64 {
         let (pa, pb) = (
             ellipse(c.shapes[a]).polygon(c.sides),
@@ -319,7 +343,7 @@ mod tests {
     /// Checks `test` for both agents of the case (agent 1 through the reversed bound, as the
     /// crowd step reuses it). Returns how many of the two were culled, or the failure.
     fn check(c: &Case, test: Test) -> Result<usize, String> {
-        let limits = Limits::new(c.tau, c.max_speed, c.sides);
+        let limits = Limits::new(c.tau, c.max_speed, c.sides).with_slack(c.slack);
         let bodies = c.shapes.map(|s| Body::new(&ellipse(s), &limits));
         let (va, vb) = (c.vel[0], c.vel[1]);
         let pair = Pair {
@@ -328,10 +352,10 @@ mod tests {
             a: &bodies[0],
             b: &bodies[1],
         };
-        let scale = 1.0 + c.p.norm() / c.tau + (va - vb).norm() + va.norm() + vb.norm();
+        let scale = 1.0 + c.p.norm() / c.tau + (va - vb).norm() + va.norm() + vb.norm() + c.slack;
         let mut culled = 0;
         if let Some(bound) = test(&pair, Motion::new(va), &limits) {
-            let x = excess(c, c.p, va - vb, va, 0);
+            let x = excess(c, c.p, va - vb, va, 0) - c.slack;
             if x > 1e-9 * scale {
                 return Err(format!("agent 0 culled, disc sticks out by {x}"));
             }
@@ -344,7 +368,7 @@ mod tests {
             };
             let bound = bound.reversed();
             if contains_disc(&rev, &bound, Motion::new(vb), &limits) {
-                let x = excess(c, -c.p, vb - va, vb, 1);
+                let x = excess(c, -c.p, vb - va, vb, 1) - c.slack;
                 if x > 1e-9 * scale {
                     return Err(format!("agent 1 culled, disc sticks out by {x}"));
                 }
@@ -376,10 +400,10 @@ mod tests {
             (0.8f64..4.0, 0.0f64..TAU),
             [velocity(), velocity()],
             (0.5f64..10.0, prop::sample::select(vec![0.5, 1.0, 2.0])),
-            0.0f64..6.0,
+            (0.0f64..6.0, prop_oneof![Just(0.0), 0.0f64..8.0]),
         )
             .prop_map(
-                |(shapes, sides, (dist, angle), vel, (tau, dt), max_speed)| {
+                |(shapes, sides, (dist, angle), vel, (tau, dt), (max_speed, slack))| {
                     let reach = |(l, w, _): (f64, f64, f64)| 0.5 * l.max(w);
                     let rho = 1.0 / (std::f64::consts::PI / sides as f64).cos();
                     let dist = dist * rho * (reach(shapes[0]) + reach(shapes[1]));
@@ -391,16 +415,18 @@ mod tests {
                         tau,
                         dt,
                         max_speed,
+                        slack,
                     }
                 },
             )
     }
 
-    /// The case with the speed limit moved to `offset` from the largest one whose disc agent
-    /// 0's exact half-plane contains: the decision is then as close as it gets.
+    /// The case with the speed limit moved to `offset` from the largest one at which agent 0's
+    /// exact half-plane is violated by at most the slack: the decision is then as close as it
+    /// gets.
     fn at_the_limit(mut c: Case, offset: f64) -> Case {
         let x = excess(&c, c.p, c.vel[0] - c.vel[1], c.vel[0], 0);
-        c.max_speed = (c.max_speed - x + offset).max(0.0);
+        c.max_speed = (c.max_speed - x + c.slack + offset).max(0.0);
         c
     }
 
@@ -416,7 +442,8 @@ mod tests {
     proptest! {
         #![proptest_config(config(20_000))]
 
-        /// Whenever the test culls, the exact half-plane contains the disc.
+        /// Whenever the test culls, the exact half-plane's largest violation in the disc is at
+        /// most the slack (it contains the disc when the slack is zero).
         #[test]
         fn culled_half_planes_contain_the_disc(c in case()) {
             prop_assert_eq!(check(&c, cull).err(), None, "{:?}", c);
