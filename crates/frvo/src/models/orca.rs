@@ -675,7 +675,8 @@ impl View<'_> {
     }
 
     /// What agent `i`, owning its pair with `j`, leaves in the slot: the bound if `limits`'
-    /// cull test culls it (as `kind`), else the exact avoidance.
+    /// cull test culls it (as `kind`; with a slack, first by distances alone), else the exact
+    /// avoidance.
     fn owned_pair(
         &self,
         i: usize,
@@ -686,7 +687,13 @@ impl View<'_> {
         scratch: &mut PairScratch,
     ) -> Slot {
         let (p, w) = self.relative(i, j);
-        match cull::cull(&self.pair(i, j, p, w), motion, limits) {
+        let pair = self.pair(i, j, p, w);
+        let bound = if kind == Kind::CulledWithSlack {
+            cull::cull_far(&pair, motion, limits)
+        } else {
+            cull::cull(&pair, motion, limits)
+        };
+        match bound {
             Some(bound) => Slot::culled(bound, kind),
             None => Slot::exact(self.exact(i, j, p, w, scratch)),
         }
@@ -789,8 +796,8 @@ impl View<'_> {
     /// Agent `i`'s half-planes (FRVO) from the given slots, appended to `block.lines` in slot
     /// order: its own pairs', the negation of its partners', none where its half-plane
     /// provably contains the speed disc. These are the lines of the plain computation (one
-    /// exact avoidance per pair, cull tests against the speed disc only): a pair culled
-    /// against a slack is tested again against the disc.
+    /// exact avoidance per pair, cull tests against the speed disc only): the owner's cull
+    /// test is made again for a pair culled with a slack.
     fn polygon_lines(&self, i: usize, slots: Range<usize>, block: &mut Block) {
         let vel = self.agents[i].vel;
         let motion = Motion::new(vel);
@@ -804,8 +811,7 @@ impl View<'_> {
                 (true, Kind::Culled) => continue, // never binds: the LP is the same without it
                 (true, _) => {
                     let (p, w) = self.relative(i, j);
-                    let pair = self.pair(i, j, p, w);
-                    if cull::contains_disc(&pair, &slot.bound(), motion, self.limits) {
+                    if cull::cull(&self.pair(i, j, p, w), motion, self.limits).is_some() {
                         continue;
                     }
                     self.exact(i, j, p, w, &mut block.pair)
@@ -814,18 +820,17 @@ impl View<'_> {
                 // The owner skipped it: whether `i` may too depends on its own velocity.
                 (false, kind) => {
                     let (p, w) = self.relative(i, j);
-                    // Culled against the owner's slack: would the plain test have culled it?
-                    let owner_culls = kind == Kind::Culled
-                        || cull::contains_disc(
-                            &self.pair(j, i, -p, -w),
-                            &slot.bound(),
-                            Motion::new(self.agents[j].vel),
-                            self.limits,
-                        );
+                    // Culled with the owner's slack: the plain test's bound, if it culls.
+                    let bound = if kind == Kind::Culled {
+                        Some(slot.bound())
+                    } else {
+                        let motion = Motion::new(self.agents[j].vel);
+                        cull::cull(&self.pair(j, i, -p, -w), motion, self.limits)
+                    };
                     let pair = self.pair(i, j, p, w);
-                    if owner_culls
-                        && cull::contains_disc(&pair, &slot.reversed_bound(), motion, self.limits)
-                    {
+                    if bound.is_some_and(|bound| {
+                        cull::contains_disc(&pair, &bound.reversed(), motion, self.limits)
+                    }) {
                         continue;
                     }
                     // As its owner would have computed it, negated: one side per pair.
@@ -858,7 +863,12 @@ impl View<'_> {
                     let j = self.nbr[s] as usize;
                     let (p, w) = self.relative(i, j);
                     let pair = self.pair(i, j, p, w);
-                    if cull::contains_disc(&pair, &slot.reversed_bound(), motion, &limits) {
+                    let bound = slot.reversed_bound();
+                    // A bound from distances alone may fail where `i`'s own test would not.
+                    if cull::contains_disc(&pair, &bound, motion, &limits)
+                        || (bound.is_from_distances()
+                            && cull::cull(&pair, motion, &limits).is_some())
+                    {
                         continue;
                     }
                     negated(self.exact(j, i, -p, -w, &mut block.pair))
