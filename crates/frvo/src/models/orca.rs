@@ -1,7 +1,7 @@
 //! Reciprocal velocity obstacles for a crowd: FRVO (oriented ellipses) and, with circles, the
 //! classic RVO/ORCA baseline. Both share the polygon velocity obstacles, the grid and the LP.
 //!
-//! A step runs in three phases over contiguous blocks of agents, each block on one thread
+//! A step runs in four phases over contiguous blocks of agents, each block on one thread
 //! when the crowd is large enough (see [`MotionParams::threads`]):
 //! 1. each agent's polygon and ellipse (FRVO) and its neighbours (the grid is read-only);
 //! 2. (FRVO) the pairs each agent owns: of a pair that both agents list, the earlier agent
