@@ -1109,8 +1109,8 @@ mod tests {
 
     /// Solving the near neighbours first, and skipping the far pairs that cannot change the
     /// result, gives the velocities of the plain computation bit for bit: in a packed crowd
-    /// (almost every LP infeasible), a looser one (mostly feasible) and in between, on one
-    /// thread and on three.
+    /// (almost every LP infeasible), looser ones (mostly feasible), a fast one with a long
+    /// horizon (where far lines bind more often), on one thread and on three.
     #[test]
     fn near_first_gives_the_plain_velocities_bit_for_bit() {
         let (mut kept, mut full) = (0, 0);
