@@ -141,7 +141,7 @@ fn negated(avoid: Avoidance) -> Avoidance {
 ///
 /// The full LP adds the far neighbours' lines after the near ones, and its incremental pass
 /// skips every later line violated at the current optimum by no more than the current level:
-/// 0 while feasible, the min-max level once infeasible (`violation`). So if no far line is
+/// 0 while feasible, the min-max level once infeasible (`lp::Solution::violation`). So if no far line is
 /// violated by more at the near optimum, the full solution is the near one, bit for bit.
 /// Many far lines cannot be, which the cull test proves cheaply with a slack `s`
 /// ([`cull::Limits::with_slack`]: the line's violation anywhere in the speed disc `|v| <= S`
@@ -151,32 +151,25 @@ fn negated(avoid: Avoidance) -> Avoidance {
 /// plain computation keeps.
 #[derive(Clone, Copy, Debug)]
 struct Near {
-    velocity: V2,
-    feasible: bool,
-    violation: f64,
+    sol: lp::Solution,
     /// The far lines' allowed violation in the disc, as above (never negative).
     slack: f64,
     /// Whether the near neighbours are all the neighbours: the near LP is the full one.
     complete: bool,
-    /// The near lines in the block's `near_lines`.
-    lines: (u32, u32),
 }
 
 impl Near {
-    fn new(sol: lp::Solution, max_speed: f64, complete: bool, lines: (u32, u32)) -> Self {
+    fn new(sol: lp::Solution, max_speed: f64, complete: bool) -> Self {
         let slack = if sol.feasible {
             max_speed - sol.velocity.norm()
         } else {
             sol.violation
         };
         Self {
-            velocity: sol.velocity,
-            feasible: sol.feasible,
-            violation: sol.violation,
+            sol,
             // Not NaN (`max` drops it): no slack then.
             slack: slack.max(0.0),
             complete,
-            lines,
         }
     }
 
@@ -260,9 +253,8 @@ struct Block {
     owned: Vec<u32>,
     pending: Vec<u32>,
     pending_ends: Vec<u32>,
-    /// Phase 3: each agent's near LP and lines.
+    /// Phase 3: each agent's near LP.
     near: Vec<Near>,
-    near_lines: Vec<Line>,
     /// Phases 3 and 4: the agent's half-planes.
     lines: Vec<Line>,
     /// Phase 4: the block's agents with far neighbours that kept the near solution, and that
@@ -494,7 +486,6 @@ impl Orca {
             .collect();
         Threads::for_each(parallel, work, |((block, far), base)| {
             block.near.clear();
-            block.near_lines.clear();
             for (k, i) in block.agents.clone().enumerate() {
                 view.solve_near(i, k, block, far, base);
             }
@@ -717,12 +708,9 @@ impl View<'_> {
         let near_end = slots.start.saturating_add(self.near_slots).min(slots.end);
         block.lines.clear();
         self.polygon_lines(i, slots.start..near_end, block);
-        let start = block.near_lines.len() as u32;
-        block.near_lines.extend_from_slice(&block.lines);
         let pref = finite_pref(&self.agents[i]);
         let sol = lp::solve(&block.lines, self.params.max_speed, pref, &mut block.lp);
-        let lines = (start, block.near_lines.len() as u32);
-        let near = Near::new(sol, self.params.max_speed, near_end == slots.end, lines);
+        let near = Near::new(sol, self.params.max_speed, near_end == slots.end);
         block.near.push(near);
         let first = if k == 0 { 0 } else { block.pending_ends[k - 1] };
         let pending = first as usize..block.pending_ends[k] as usize;
@@ -769,28 +757,30 @@ impl View<'_> {
     /// binds; else the LP over all its lines.
     fn solve_ellipses(&self, i: usize, block: &mut Block, pref: V2) -> lp::Solution {
         let near = block.near[i - block.agents.start];
-        let as_solution = |near: &Near| lp::Solution {
-            velocity: near.velocity,
-            feasible: near.feasible,
-            violation: near.violation,
-        };
         if near.complete {
-            return as_solution(&near);
+            return near.sol;
         }
         let slots = self.slots(i);
         let far = slots.start + self.near_slots..slots.end;
         if !self.far_binds(i, far.clone(), &near, block) {
             block.near_kept += 1;
-            return as_solution(&near);
+            return near.sol;
         }
+        // Rare: the near lines are made again (the same, bit for bit) rather than kept for
+        // every agent.
         block.full_solved += 1;
         block.lines.clear();
-        let (start, end) = near.lines;
-        block
-            .lines
-            .extend_from_slice(&block.near_lines[start as usize..end as usize]);
+        self.polygon_lines(i, slots.start..far.start, block);
         self.polygon_lines(i, far, block);
         lp::solve(&block.lines, self.params.max_speed, pref, &mut block.lp)
+    }
+
+    /// Whether slot `s` is its agent's own, and what the pair's owner left for it.
+    #[inline]
+    fn owner_slot(&self, s: usize) -> (bool, Slot) {
+        let t = self.partner[s];
+        let own = t == NONE;
+        (own, self.slot(if own { s } else { t as usize }))
     }
 
     /// What the owner of slot `t` left for it.
@@ -813,9 +803,7 @@ impl View<'_> {
         let vel = self.agents[i].vel;
         let motion = Motion::new(vel);
         for s in slots {
-            let t = self.partner[s];
-            let own = t == NONE;
-            let slot = self.slot(if own { s } else { t as usize });
+            let (own, slot) = self.owner_slot(s);
             let j = self.nbr[s] as usize;
             let avoid = match (own, slot.kind) {
                 (true, Kind::Exact) => slot.avoidance(),
@@ -862,9 +850,7 @@ impl View<'_> {
         let motion = Motion::new(vel);
         let limits = near.limits(self.limits);
         for s in slots {
-            let t = self.partner[s];
-            let own = t == NONE;
-            let slot = self.slot(if own { s } else { t as usize });
+            let (own, slot) = self.owner_slot(s);
             let avoid = match (own, slot.kind) {
                 (true, Kind::Exact) => slot.avoidance(),
                 // Culled against the disc, or with `i`'s own slack.
@@ -886,7 +872,7 @@ impl View<'_> {
                 }
             };
             if let Some(line) = usable(reciprocal_line(vel, avoid)) {
-                if line.violation(near.velocity) > near.violation {
+                if line.violation(near.sol.velocity) > near.sol.violation {
                     return true;
                 }
             }
