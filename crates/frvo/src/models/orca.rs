@@ -106,16 +106,16 @@ impl Slot {
         }
     }
 
-    fn avoidance(&self) -> Avoidance {
+    /// The avoidance for the owner (`own`), or for the other agent: the owner's negated (see
+    /// `pair_avoidance`). By a sign, not a branch: which slots an agent owns follows no
+    /// pattern a predictor could learn (and negating is exact either way).
+    #[inline]
+    fn avoidance_for(&self, own: bool) -> Avoidance {
+        let sign = if own { 1.0 } else { -1.0 };
         Avoidance {
-            u: self.a,
-            normal: self.normal,
+            u: self.a * sign,
+            normal: self.normal * sign,
         }
-    }
-
-    /// The other agent's avoidance: the owner's negated (see `pair_avoidance`).
-    fn reversed_avoidance(&self) -> Avoidance {
-        negated(self.avoidance())
     }
 
     /// The bound of a culled slot.
@@ -806,7 +806,7 @@ impl View<'_> {
             let (own, slot) = self.owner_slot(s);
             let j = self.nbr[s] as usize;
             let avoid = match (own, slot.kind) {
-                (true, Kind::Exact) => slot.avoidance(),
+                (_, Kind::Exact) => slot.avoidance_for(own),
                 (true, Kind::Culled) => continue, // never binds: the LP is the same without it
                 (true, _) => {
                     let (p, w) = self.relative(i, j);
@@ -815,7 +815,6 @@ impl View<'_> {
                     }
                     self.exact(i, j, p, w, &mut block.pair)
                 }
-                (false, Kind::Exact) => slot.reversed_avoidance(),
                 // The owner skipped it: whether `i` may too depends on its own velocity.
                 (false, kind) => {
                     let (p, w) = self.relative(i, j);
@@ -852,10 +851,9 @@ impl View<'_> {
         for s in slots {
             let (own, slot) = self.owner_slot(s);
             let avoid = match (own, slot.kind) {
-                (true, Kind::Exact) => slot.avoidance(),
+                (_, Kind::Exact) => slot.avoidance_for(own),
                 // Culled against the disc, or with `i`'s own slack.
                 (true, _) => continue,
-                (false, Kind::Exact) => slot.reversed_avoidance(),
                 (false, _) => {
                     let j = self.nbr[s] as usize;
                     let (p, w) = self.relative(i, j);
