@@ -30,11 +30,15 @@ fn pseudo_angle(d: V2) -> f64 {
         return 0.0;
     }
     let (x, y) = (d.x / s, d.y / s);
-    match (y >= 0.0, x >= 0.0) {
-        (true, true) => y,
-        (true, false) => 1.0 - x,
-        (false, false) => 2.0 - y,
-        (false, true) => 3.0 + x,
+    // Every quadrant's value, then selects: the quadrant follows no pattern a branch predictor
+    // could learn.
+    let (upper, right) = (y >= 0.0, x >= 0.0);
+    let above = if right { y } else { 1.0 - x };
+    let below = if right { 3.0 + x } else { 2.0 - y };
+    if upper {
+        above
+    } else {
+        below
     }
 }
 
@@ -142,20 +146,27 @@ impl Shapes {
     /// Appends a counter-clockwise polygon of `sides` vertices.
     pub(crate) fn push(&mut self, poly: &[V2]) {
         debug_assert_eq!(poly.len(), self.sides);
-        let start = lowest_vertex(poly);
         let n = poly.len();
-        let count = self.stored();
-        for k in 0..count {
-            let (from, to) = (poly[(start + k) % n], poly[(start + k + 1) % n]);
+        let start = lowest_vertex(poly);
+        // Vertex `start + k` for `k <= n`: one subtraction, not a division, wraps it.
+        let at = |k: usize| {
+            let i = start + k;
+            poly[if i >= n { i - n } else { i }]
+        };
+        let mut from = at(0);
+        // A range, so `extend` reserves once instead of checking the capacity per edge.
+        self.edges.extend((1..self.stored() + 1).map(|k| {
+            let to = at(k);
             let vec = to - from;
             // Never NaN (an overflowing polygon): the merge's walks then only both advance on
             // a tie, and never past their sentinels.
             let angle = pseudo_angle(vec);
             let angle = if angle.is_nan() { 0.0 } else { angle };
-            self.edges
-                .push(Edge::new(from, unit(right_normal(vec)), angle));
-        }
-        self.edges.push(Edge::sentinel(poly[(start + count) % n]));
+            let edge = Edge::new(from, unit(right_normal(vec)), angle);
+            from = to;
+            edge
+        }));
+        self.edges.push(Edge::sentinel(from));
     }
 
     /// Appends every polygon of `other` (prepared with the same `reset`).
