@@ -1,22 +1,34 @@
-//! Neighbour search on a uniform grid of about one agent per cell. A query searches a disc
-//! that the crowd's density predicts to hold a few more agents than wanted, and a wider one only
+//! Neighbour search on a uniform grid of a few cells per agent. A query searches a disc that
+//! the crowd's density predicts to hold a few more agents than wanted, and a wider one only
 //! where that disc holds too few (the agents within a disc are the nearest if there are enough
 //! of them), reading the cells row by row (one contiguous slice of the agents per row). Building
 //! is O(N).
 
 use crate::geometry::V2;
+use std::ops::Range;
 
-/// Upper bound on cells per axis, so that far-flung coordinates cannot blow up memory.
+/// Upper bound on agent spacings per axis, so that far-flung coordinates cannot blow up memory.
 const MAX_CELLS_PER_AXIS: usize = 1024;
+/// Cell width and row height, in agent spacings. A query reads one slice of agents per row (a
+/// loop, with its fixed costs and an exit that branch predictors miss), whose end cells stick
+/// out of the disc: narrow cells waste fewer candidates at no cost per row, and rows a bit
+/// taller than the spacing make fewer rows for a few more candidates.
+const CELL_WIDTH: f64 = 0.25;
+const ROW_HEIGHT: f64 = 2.0;
 
 #[derive(Clone, Debug, Default)]
 pub struct NeighborGrid {
     radius: f64,
-    cell: f64,
+    /// The agents' typical spacing.
+    spacing: f64,
+    /// Cell width and row height.
+    cell: V2,
+    /// Row height over cell width.
+    aspect: f64,
     /// Bounding box of the agents.
     min: V2,
     max: V2,
-    /// Agents per unit area of the bounding box padded by a cell.
+    /// Agents per unit area of the bounding box padded by a spacing.
     density: f64,
     nx: usize,
     ny: usize,
@@ -24,6 +36,20 @@ pub struct NeighborGrid {
     /// so that a query reads memory in order.
     starts: Vec<u32>,
     items: Vec<(V2, u32)>,
+}
+
+/// What queries for up to `max` agents share, computed once per built grid (see
+/// `NeighborGrid::plan`).
+#[derive(Clone, Copy, Debug)]
+pub struct Plan {
+    max: usize,
+    /// A few more agents than `max`, so that the first disc rarely falls short.
+    want: f64,
+    /// Room in front of the agents found (see `NeighborGrid::search`).
+    front: usize,
+    buckets: usize,
+    /// Radius of a disc that the crowd's density predicts to hold `want` agents.
+    reach: f64,
 }
 
 impl NeighborGrid {
@@ -49,24 +75,27 @@ impl NeighborGrid {
         }
         let extent = hi - lo;
         let longest = extent.x.max(extent.y);
-        // About one agent per cell (the bounding box's area per agent), but no more cells along
-        // an axis than agents, so that a thin crowd cannot blow up the grid. A query's first
-        // disc holds about `max` agents whatever the radius: cells sized by the radius would
-        // make it read many more.
-        self.cell = (extent.x * extent.y / n as f64)
+        // The bounding box's area per agent, but no more spacings along an axis than agents,
+        // so that a thin crowd cannot blow up the grid. A query's first disc holds about `max`
+        // agents whatever the radius: cells sized by the radius would make it read many more.
+        self.spacing = (extent.x * extent.y / n as f64)
             .sqrt()
             .max(longest / n as f64)
             .max(longest / MAX_CELLS_PER_AXIS as f64)
             .max(1e-9);
-        if !self.cell.is_finite() {
-            self.cell = f64::MAX;
-        }
+        let finite = |x: f64| if x.is_finite() { x } else { f64::MAX };
+        self.spacing = finite(self.spacing);
+        self.cell = V2::new(
+            finite(self.spacing * CELL_WIDTH),
+            finite(self.spacing * ROW_HEIGHT),
+        );
+        self.aspect = self.cell.y / self.cell.x;
         // Padded, as a lattice of m x m agents spaced s spans (m - 1) s.
-        self.density = n as f64 / ((extent.x + self.cell) * (extent.y + self.cell));
+        self.density = n as f64 / ((extent.x + self.spacing) * (extent.y + self.spacing));
         self.min = lo;
         self.max = hi;
-        self.nx = self.axis_cells(extent.x);
-        self.ny = self.axis_cells(extent.y);
+        self.nx = axis_cells(extent.x, self.cell.x);
+        self.ny = axis_cells(extent.y, self.cell.y);
         let cells = self.nx * self.ny;
         self.starts.resize(cells + 1, 0);
         for (p, _) in positions.iter().zip(valid).filter(|(_, &ok)| ok) {
@@ -91,17 +120,8 @@ impl NeighborGrid {
         }
     }
 
-    fn axis_cells(&self, extent: f64) -> usize {
-        let n = (extent / self.cell).floor();
-        if n.is_finite() {
-            (n as usize + 1).min(MAX_CELLS_PER_AXIS)
-        } else {
-            1
-        }
-    }
-
     fn cell_xy(&self, p: V2) -> (usize, usize) {
-        let d = (p - self.min) / self.cell;
+        let d = (p - self.min).component_div(&self.cell);
         let ix = (d.x.max(0.0) as usize).min(self.nx - 1);
         let iy = (d.y.max(0.0) as usize).min(self.ny - 1);
         (ix, iy)
@@ -112,37 +132,80 @@ impl NeighborGrid {
         iy * self.nx + ix
     }
 
+    /// The constants of queries for up to `max` agents in this grid (until it is built again).
+    pub fn plan(&self, max: usize) -> Plan {
+        // Enough that the first disc falls short for one query in 70 to 200 in the benchmark's
+        // crowds (each costs a second disc), but little more: every agent wanted costs some 1.5
+        // candidates read.
+        let want = max as f64 + 0.75 * (max as f64).sqrt() + 2.0;
+        Plan {
+            max,
+            want,
+            front: (want + want.sqrt()).min(FILED as f64) as usize,
+            buckets: ((want * BUCKETS_PER_AGENT) as usize).clamp(1, BUCKETS),
+            reach: (want / (std::f64::consts::PI * self.density)).sqrt(),
+        }
+    }
+
     /// Up to `max` agents other than `me` strictly within the radius of `positions[me]`, nearest
     /// first (equal distances by index), as (squared distance, index) in `out`.
     pub fn query(&self, positions: &[V2], me: usize, max: usize, out: &mut Vec<(f64, usize)>) {
+        let found = self.search(positions, me, &self.plan(max), out);
+        out.copy_within(found.clone(), 0);
+        out.truncate(found.len());
+    }
+
+    /// `query` for `plan`'s `max`, as a part of `scratch` (whose length is of no concern to
+    /// the caller): one scratch kept across queries is written only where agents are found,
+    /// where `query` fills the room it needs for every query.
+    pub fn nearest<'a>(
+        &self,
+        positions: &[V2],
+        me: usize,
+        plan: &Plan,
+        scratch: &'a mut Vec<(f64, usize)>,
+    ) -> &'a [(f64, usize)] {
+        let found = self.search(positions, me, plan, scratch);
+        &scratch[found]
+    }
+
+    /// Where in `out` the agents of `query` end up.
+    fn search(
+        &self,
+        positions: &[V2],
+        me: usize,
+        plan: &Plan,
+        out: &mut Vec<(f64, usize)>,
+    ) -> Range<usize> {
+        let Plan {
+            max, want, front, ..
+        } = *plan;
         if self.nx == 0 || max == 0 || self.radius <= 0.0 {
-            out.clear();
-            return;
+            return 0..0;
         }
         let p = positions[me];
         if !(p.x.is_finite() && p.y.is_finite()) {
-            out.clear();
-            return;
+            return 0..0;
         }
-        // A few more than `max`, so that the first disc rarely falls short.
-        let want = max as f64 + (max as f64).sqrt() + 2.0;
         // The agents found are written after `out[..front]`, over whatever `out` holds: room
         // to sort them into, which the first disc nearly always leaves enough of (`out` is
         // sized for `front` of them, and grows where a disc finds more).
-        let front = (want + want.sqrt()).min(FILED as f64) as usize;
-        out.resize(2 * front + 16, (0.0, 0));
+        if out.len() < 2 * front + 16 {
+            out.resize(2 * front + 16, (0.0, 0));
+        }
         // Every agent lies within sqrt(far2) of p: a disc wider than that finds them all.
-        let far = (p - self.min).abs().sup(&(self.max - p).abs());
-        let far2 = far.norm_squared();
-        let mut r = self.first_radius(p, want).max(self.cell).min(self.radius);
+        let far2 = || {
+            let far = (p - self.min).abs().sup(&(self.max - p).abs());
+            far.norm_squared()
+        };
+        let mut r = self.first_radius(p, plan.reach);
         loop {
-            let mut disc = Disc::new(p, r, me, want);
+            let mut disc = Disc::new(p, r, me, plan.buckets);
             let found = self.collect(&mut disc, out, front);
             // With `max` agents within r <= radius, any agent outside is farther than all of
             // them: they are the nearest `max`.
-            if found >= max || r >= self.radius || r * r > far2 {
-                disc.sort(out, front, found, max);
-                return;
+            if found >= max || r >= self.radius || r * r > far2() {
+                return disc.sort(out, front, found, max);
             }
             // Wider by the density found (at least by half), to hold `want` this time.
             let grow = (want / (found + 1) as f64).sqrt().max(1.5);
@@ -150,29 +213,34 @@ impl NeighborGrid {
         }
     }
 
-    /// A radius around `p` within which the crowd's density predicts `want` agents, widened
-    /// where the disc sticks out of the crowd's bounding box.
-    fn first_radius(&self, p: V2, want: f64) -> f64 {
-        let r = (want / (std::f64::consts::PI * self.density)).sqrt();
+    /// `reach` around `p`, widened where the disc sticks out of the crowd's bounding box, but
+    /// no less than a spacing nor more than the radius.
+    fn first_radius(&self, p: V2, reach: f64) -> f64 {
+        // Comparisons and selects, which `f64::min` and `max` are not (they also order NaNs):
+        // all here are numbers, and `p` lies in the box (but for an invalid `me`).
+        let min = |a: f64, b: f64| if a < b { a } else { b };
+        let max = |a: f64, b: f64| if a > b { a } else { b };
         // Share of the disc's bounding square inside the padded box.
-        let pad = 0.5 * self.cell;
-        let inside =
-            |lo: f64, hi: f64, x: f64| ((x + r).min(hi + pad) - (x - r).max(lo - pad)) / (2.0 * r);
-        let share = inside(self.min.x, self.max.x, p.x) * inside(self.min.y, self.max.y, p.y);
-        if share > 0.0 && share < 1.0 {
-            r / share.sqrt()
+        let pad = 0.5 * self.spacing;
+        let inside = |lo: f64, hi: f64, x: f64| min(x + reach, hi + pad) - max(x - reach, lo - pad);
+        let share = inside(self.min.x, self.max.x, p.x) * inside(self.min.y, self.max.y, p.y)
+            / (4.0 * reach * reach);
+        let r = if share > 0.0 && share < 1.0 {
+            reach / share.sqrt()
         } else {
-            r
-        }
+            reach
+        };
+        min(max(r, self.spacing), self.radius)
     }
 
     /// Writes the agents within the disc (other than its `me`) to `out[front..]`, unordered,
     /// counts them by bucket, and returns how many.
     fn collect(&self, disc: &mut Disc, out: &mut Vec<(f64, usize)>, front: usize) -> usize {
         let (p, r2, me) = (disc.p, disc.r2, disc.me);
-        let local = (p - self.min) / self.cell;
-        // A hair wider, so that rounding cannot drop a cell that holds an agent within r.
-        let reach = r2.sqrt() / self.cell * (1.0 + 1e-9);
+        let local = (p - self.min).component_div(&self.cell);
+        // In rows, and a hair wider, so that rounding cannot drop a cell that holds an agent
+        // within r.
+        let reach = r2.sqrt() / self.cell.y * (1.0 + 1e-9);
         // The cells from `lo` to `hi` (in cells) that exist: truncating the clamped values
         // floors them, without a call to `floor`.
         let cells = |lo: f64, hi: f64, n: usize| {
@@ -189,7 +257,7 @@ impl NeighborGrid {
                 continue;
             }
             // Not sqrt(reach^2 - gap^2), which underflows to 0 for a tiny reach.
-            let half = (reach - gap).sqrt() * (reach + gap).sqrt();
+            let half = (reach - gap).sqrt() * (reach + gap).sqrt() * self.aspect;
             let (x0, x1) = cells(local.x - half, local.x + half, self.nx);
             let row = iy * self.nx;
             let slice = &self.items[self.starts[row + x0 as usize] as usize
@@ -211,6 +279,17 @@ impl NeighborGrid {
             }
         }
         end - front
+    }
+}
+
+/// Cells of size `cell` along an axis of the crowd's `extent`.
+fn axis_cells(extent: f64, cell: f64) -> usize {
+    let n = (extent / cell).floor();
+    if n.is_finite() {
+        // As many as the spacings allow, cells being a quarter spacing wide.
+        (n as usize + 1).min(MAX_CELLS_PER_AXIS * 4)
+    } else {
+        1
     }
 }
 
@@ -243,9 +322,8 @@ struct Disc {
 }
 
 impl Disc {
-    fn new(p: V2, r: f64, me: usize, want: f64) -> Self {
+    fn new(p: V2, r: f64, me: usize, buckets: usize) -> Self {
         let r2 = r * r;
-        let buckets = ((want * BUCKETS_PER_AGENT) as usize).clamp(1, BUCKETS);
         let scale = buckets as f64 / r2;
         Self {
             p,
@@ -268,21 +346,26 @@ impl Disc {
         ((d2 * self.scale + ROUND).to_bits() - ROUND.to_bits()) as u8
     }
 
-    /// Replaces `out` (room, up to `front`, then the `found` agents found) with the nearest
-    /// `max` agents found, nearest first (equal distances by index).
-    fn sort(&mut self, out: &mut Vec<(f64, usize)>, front: usize, found: usize, max: usize) {
+    /// Orders `out`'s `found` agents after `out[..front]` (room), and returns where the nearest
+    /// `max` of them are in `out`, nearest first (equal distances by index).
+    fn sort(
+        &mut self,
+        out: &mut Vec<(f64, usize)>,
+        front: usize,
+        found: usize,
+        max: usize,
+    ) -> Range<usize> {
         // Squared distances are >= +0 and never NaN (finite positions), so their bit patterns
         // order like the numbers: (bits, index) is the total order "nearest, then lower index".
         let key = |x: &(f64, usize)| (u128::from(x.0.to_bits()) << 64) | x.1 as u128;
+        let max = max.min(found);
         if found > FILED {
-            out.truncate(front + found);
-            out.drain(..front);
+            let agents = &mut out[front..front + found];
             if found > max {
-                out.select_nth_unstable_by_key(max - 1, key);
-                out.truncate(max);
+                agents.select_nth_unstable_by_key(max - 1, key);
             }
-            out.sort_unstable_by_key(key);
-            return;
+            agents[..max].sort_unstable_by_key(key);
+            return front..front + max;
         }
         // Counts to starts, eight at a time: no sum exceeds `found` <= 255, so no byte carries
         // into the next, and multiplying by `BYTES` sums each byte and those below it.
@@ -310,7 +393,6 @@ impl Disc {
             sorted[*at as usize] = *x;
             *at += 1;
         }
-        let max = max.min(found);
         if max > 0 {
             // Insertion: an agent can be out of order only among the few of its bucket, and only
             // the buckets up to the one of the `max`-th agent need ordering (`count[b]` is now
@@ -329,10 +411,7 @@ impl Disc {
                 }
             }
         }
-        if to > 0 {
-            out.copy_within(to..to + max, 0);
-        }
-        out.truncate(max);
+        to..to + max
     }
 }
 
@@ -364,9 +443,12 @@ mod tests {
     ) -> Result<(), TestCaseError> {
         let mut grid = NeighborGrid::default();
         grid.build(positions, valid, radius);
-        let mut out = Vec::new();
+        let plan = grid.plan(max);
+        let (mut out, mut scratch) = (Vec::new(), Vec::new());
         for me in 0..positions.len() {
             grid.query(positions, me, max, &mut out);
+            let found = grid.nearest(positions, me, &plan, &mut scratch);
+            prop_assert_eq!(found, &out[..], "agent {}", me);
             let mut want: Vec<(f64, usize)> = (0..positions.len())
                 .filter(|&j| j != me && valid[j] && radius > 0.0)
                 .map(|j| ((positions[j] - positions[me]).norm_squared(), j))

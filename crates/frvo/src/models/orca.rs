@@ -390,6 +390,7 @@ impl Orca {
         let (grid, positions, valid) = (&self.grid, &self.positions, &self.valid);
         let (max, unit, limits) = (self.params.max_neighbors, &self.unit, &self.limits);
         let ellipse = self.footprint == Footprint::Ellipse;
+        let plan = grid.plan(max);
         let blocks: Vec<&mut Block> = self.blocks.iter_mut().collect();
         Threads::for_each(parallel, blocks, |block| {
             if ellipse {
@@ -399,10 +400,8 @@ impl Orca {
             block.ends.clear();
             for i in block.agents.clone() {
                 if valid[i] {
-                    grid.query(positions, i, max, &mut block.found);
-                    block
-                        .list
-                        .extend(block.found.iter().map(|&(_, j)| j as u32));
+                    let found = grid.nearest(positions, i, &plan, &mut block.found);
+                    block.list.extend(found.iter().map(|&(_, j)| j as u32));
                 }
                 block.ends.push(block.list.len() as u32);
             }
