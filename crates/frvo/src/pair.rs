@@ -53,6 +53,8 @@ fn pseudo_angle(d: V2) -> f64 {
 pub(crate) struct Shapes {
     sides: usize,
     symmetric: bool,
+    /// Edges per polygon with the sentinel: kept, not worked out on every `get`.
+    stride: usize,
     edges: Vec<Edge>,
 }
 
@@ -102,6 +104,7 @@ impl Shapes {
         debug_assert!(!symmetric || sides % 2 == 0);
         self.sides = sides;
         self.symmetric = symmetric && sides % 2 == 0;
+        self.stride = self.stored() + 1;
         self.edges.clear();
     }
 
@@ -177,9 +180,9 @@ impl Shapes {
 
     #[inline]
     pub(crate) fn get(&self, k: usize) -> Prepared<'_> {
-        let n = self.stored() + 1;
+        let n = self.stride;
         Prepared {
-            edges: &self.edges[k * n..(k + 1) * n],
+            edges: &self.edges[k * n..][..n],
             symmetric: self.symmetric,
         }
     }
@@ -236,8 +239,7 @@ pub(crate) fn pair_avoidance(
 ) -> Avoidance {
     debug_assert_eq!(b.symmetric, neg_a.symmetric);
     let (b, neg_a, mirror) = (b.edges, neg_a.edges, b.symmetric);
-    let (n, m) = (b.len().saturating_sub(1), neg_a.len().saturating_sub(1));
-    if n == 0 || m == 0 {
+    if b.len() < 2 || neg_a.len() < 2 {
         return Avoidance {
             u: V2::zeros(),
             normal: V2::zeros(),
@@ -245,15 +247,19 @@ pub(crate) fn pair_avoidance(
     }
     // Merge the edges in angle order (the smaller pseudo-angle first; both when within
     // PARALLEL_ANGLE), recording whether each faces the origin (the origin lies on its outer
-    // side: h < 0) in bit k of `facing`, and whether its reflection does in `facing_m`. An
-    // exhausted walk rests on its sentinel, whose angle is past every other.
+    // side: h < 0) in `facing`, and whether its reflection does in `facing_m`, shifted in
+    // from bit 0 (one shift, not one by k: edge k ends in bit `half - 1 - k`). An exhausted
+    // walk rests on its sentinel, whose angle is past every other.
+    let (n, m) = (b.len() - 1, neg_a.len() - 1);
     let (mut i, mut j, mut k) = (0usize, 0usize, 0usize);
     let (mut facing, mut facing_m) = (0u64, 0u64);
     // Every step advances at least one walk (two angles cannot each exceed the other by the
     // margin), and neither passes its sentinel before the other's is reached: n + m steps at
     // most, within MAX_VERTICES since each polygon has at most MAX_SIDES.
     while i + j < n + m && k < MAX_VERTICES {
-        let (eb, ea) = (b[i], neg_a[j]);
+        // Neither walk passes its sentinel (see above): the clamps only spare bounds checks,
+        // whose branches would cost more than the selects.
+        let (eb, ea) = (b[i.min(n)], neg_a[j.min(m)]);
         let adv_b = !(ea.angle_hi < eb.angle);
         let adv_a = !(eb.angle_hi < ea.angle);
         let v = eb.start + ea.start;
@@ -261,8 +267,8 @@ pub(crate) fn pair_avoidance(
         let normal = if adv_b { eb.normal } else { ea.normal };
         let (along_p, along_v) = (p.dot(&normal), v.dot(&normal));
         let (h, hm) = (along_p + along_v, along_v - along_p);
-        facing |= u64::from(h < 0.0) << k;
-        facing_m |= u64::from(hm < 0.0) << k;
+        facing = facing << 1 | u64::from(h < 0.0);
+        facing_m = facing_m << 1 | u64::from(hm < 0.0);
         out.edges[k] = Merged {
             v,
             n: normal,
@@ -276,19 +282,20 @@ pub(crate) fn pair_avoidance(
     // (see `Run` and `nearest`).
     let half = k;
     let mirror = mirror && 2 * half <= MAX_VERTICES;
+    // Edge k (of `len`) in bit `len - 1 - k`.
     let (len, closing) = if mirror {
-        facing |= facing_m << half;
+        facing = facing << half | facing_m;
         (2 * half, -out.edges[0].v)
     } else {
         (half, out.edges[0].v)
     };
     out.edges[half].v = closing;
     // The facing edges of a convex polygon are one contiguous run (none when the origin is
-    // inside); it starts at a facing edge whose predecessor does not face.
+    // inside); it starts at a facing edge whose predecessor (the bit above) does not face.
     let first = if len >= 3 {
-        let prev = facing << 1 | facing >> (len - 1);
+        let prev = facing >> 1 | facing << (len - 1);
         let starts = facing & !prev & (u64::MAX >> (64 - len));
-        (starts != 0).then(|| starts.trailing_zeros() as usize)
+        (starts != 0).then(|| starts.leading_zeros() as usize + len - 64)
     } else {
         None
     };
@@ -296,10 +303,10 @@ pub(crate) fn pair_avoidance(
         return overlapping(w, 1.0 / dt, p, out, half, mirror);
     };
     // Apart: the cap is the facing run of P / tau, the legs the rays from the origin through
-    // its end vertices. The run ends where the facing bits (rotated to start at `first`) first
-    // stop.
-    let rotated = (facing >> first | facing << (len - first)) & (u64::MAX >> (64 - len));
-    let count = (!rotated).trailing_zeros().min(len as u32) as usize;
+    // its end vertices. The run ends where the facing bits (rotated to start at `first` in
+    // the top bit) first stop.
+    let rotated = (facing << first | facing >> (len - first)) & (u64::MAX >> (64 - len));
+    let count = (!(rotated << (64 - len))).leading_zeros().min(len as u32) as usize;
     let run = Run::at(first, half, mirror);
     nearest(w, 1.0 / tau, p, out, run, count, true)
 }
@@ -456,15 +463,20 @@ fn nearest(
     }
     if legs {
         let (start, end) = (p + run_start, p + run.vertex(edges));
-        for (t, (dir, normal)) in [
-            (start, unit(left_normal(start))),
-            (end, unit(right_normal(end))),
-        ]
-        .into_iter()
-        .enumerate()
+        for (t, (dir, normal)) in [(start, left_normal(start)), (end, right_normal(end))]
+            .into_iter()
+            .enumerate()
         {
             let start = dir * scale;
             let e2 = dir.norm_squared();
+            // What `unit` gives: the normal's norm is the square root of `e2` (the same
+            // squares, added in the other order: the same bits), positive and finite exactly
+            // when `e2` is.
+            let normal = if e2 > 0.0 && e2 < f64::INFINITY {
+                normal / e2.sqrt()
+            } else {
+                V2::zeros()
+            };
             let t_ray = ((w - start).dot(&dir) / e2).max(0.0);
             let t_ray = if e2 > 0.0 { t_ray } else { 0.0 };
             let sd = (w - start).dot(&normal);
