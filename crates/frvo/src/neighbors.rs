@@ -32,6 +32,8 @@ pub struct NeighborGrid {
     density: f64,
     nx: usize,
     ny: usize,
+    /// The last cell along each axis, `nx - 1` and `ny - 1`.
+    last: (u32, u32),
     /// Agents of cell `c` are `items[starts[c]..starts[c + 1]]`, stored with their positions
     /// so that a query reads memory in order.
     starts: Vec<u32>,
@@ -43,11 +45,15 @@ pub struct NeighborGrid {
 #[derive(Clone, Copy, Debug)]
 pub struct Plan {
     max: usize,
+    /// Whether every query finds nothing.
+    none: bool,
     /// A few more agents than `max`, so that the first disc rarely falls short.
     want: f64,
     /// Room in front of the agents found (see `NeighborGrid::search`).
     front: usize,
     buckets: usize,
+    /// `buckets`, as a float.
+    buckets_f64: f64,
     /// Radius of a disc that the crowd's density predicts to hold `want` agents.
     reach: f64,
 }
@@ -96,6 +102,7 @@ impl NeighborGrid {
         self.max = hi;
         self.nx = axis_cells(extent.x, self.cell.x);
         self.ny = axis_cells(extent.y, self.cell.y);
+        self.last = ((self.nx - 1) as u32, (self.ny - 1) as u32);
         let cells = self.nx * self.ny;
         self.starts.resize(cells + 1, 0);
         for (p, _) in positions.iter().zip(valid).filter(|(_, &ok)| ok) {
@@ -138,11 +145,14 @@ impl NeighborGrid {
         // crowds (each costs a second disc), but little more: every agent wanted costs some 1.5
         // candidates read.
         let want = max as f64 + 0.75 * (max as f64).sqrt() + 2.0;
+        let buckets = ((want * BUCKETS_PER_AGENT) as usize).clamp(1, BUCKETS);
         Plan {
             max,
+            none: self.nx == 0 || max == 0 || self.radius <= 0.0,
             want,
             front: (want + want.sqrt()).min(FILED as f64) as usize,
-            buckets: ((want * BUCKETS_PER_AGENT) as usize).clamp(1, BUCKETS),
+            buckets,
+            buckets_f64: buckets as f64,
             reach: (want / (std::f64::consts::PI * self.density)).sqrt(),
         }
     }
@@ -177,14 +187,13 @@ impl NeighborGrid {
         plan: &Plan,
         out: &mut Vec<(f64, usize)>,
     ) -> Range<usize> {
-        let Plan {
-            max, want, front, ..
-        } = *plan;
-        if self.nx == 0 || max == 0 || self.radius <= 0.0 {
+        let Plan { max, front, .. } = *plan;
+        if plan.none {
             return 0..0;
         }
         let p = positions[me];
-        if !(p.x.is_finite() && p.y.is_finite()) {
+        // Finite (a comparison each, cheaper than `is_finite`).
+        if !((p.x.abs() < f64::INFINITY) & (p.y.abs() < f64::INFINITY)) {
             return 0..0;
         }
         // The agents found are written after `out[..front]`, over whatever `out` holds: room
@@ -193,24 +202,37 @@ impl NeighborGrid {
         if out.len() < 2 * front + 16 {
             out.resize(2 * front + 16, (0.0, 0));
         }
-        // Every agent lies within sqrt(far2) of p: a disc wider than that finds them all.
-        let far2 = || {
-            let far = (p - self.min).abs().sup(&(self.max - p).abs());
-            far.norm_squared()
-        };
-        let mut r = self.first_radius(p, plan.reach);
-        loop {
-            let mut disc = Disc::new(p, r, me, plan.buckets);
-            let found = self.collect(&mut disc, out, front);
-            // With `max` agents within r <= radius, any agent outside is farther than all of
-            // them: they are the nearest `max`.
-            if found >= max || r >= self.radius || r * r > far2() {
-                return disc.sort(out, front, found, max);
-            }
-            // Wider by the density found (at least by half), to hold `want` this time.
-            let grow = (want / (found + 1) as f64).sqrt().max(1.5);
-            r = (r * grow).min(self.radius);
+        let mut disc = Disc::new(p, self.first_radius(p, plan.reach), me, plan);
+        let mut found = self.collect(&mut disc, out, front);
+        // With `max` agents other than `me` (which `found` counts) within r <= radius, any
+        // agent outside is farther than all of them: they are the nearest `max`.
+        if found <= max && disc.r < self.radius {
+            found = self.widen(&mut disc, out, plan, found);
         }
+        disc.sort(out, front, found, max)
+    }
+
+    /// Searches ever wider discs until one holds enough agents (or all there are, or reaches
+    /// the radius), and returns how many it holds. Rare, and out of line.
+    #[inline(never)]
+    fn widen(
+        &self,
+        disc: &mut Disc,
+        out: &mut Vec<(f64, usize)>,
+        plan: &Plan,
+        mut found: usize,
+    ) -> usize {
+        // Every agent lies within sqrt(far2) of p: a disc wider than that finds them all.
+        let p = disc.p;
+        let far = (p - self.min).abs().sup(&(self.max - p).abs());
+        let far2 = far.norm_squared();
+        while found <= plan.max && disc.r < self.radius && disc.r2 <= far2 {
+            // Wider by the density found (at least by half), to hold `want` this time.
+            let grow = (plan.want / found.max(1) as f64).sqrt().max(1.5);
+            *disc = Disc::new(p, (disc.r * grow).min(self.radius), disc.me, plan);
+            found = self.collect(disc, out, plan.front);
+        }
+        found
     }
 
     /// `reach` around `p`, widened where the disc sticks out of the crowd's bounding box, but
@@ -233,21 +255,19 @@ impl NeighborGrid {
         min(max(r, self.spacing), self.radius)
     }
 
-    /// Writes the agents within the disc (other than its `me`) to `out[front..]`, unordered,
-    /// counts them by bucket, and returns how many.
+    /// Writes the agents within the disc to `out[front..]`, unordered, counts them by bucket,
+    /// and returns how many: `me` too, where it is valid (`Disc::sort` drops it).
+    #[inline(always)]
     fn collect(&self, disc: &mut Disc, out: &mut Vec<(f64, usize)>, front: usize) -> usize {
-        let (p, r2, me) = (disc.p, disc.r2, disc.me);
+        let (p, r2) = (disc.p, disc.r2);
         let local = (p - self.min).component_div(&self.cell);
         // In rows, and a hair wider, so that rounding cannot drop a cell that holds an agent
         // within r.
         let reach = r2.sqrt() / self.cell.y * (1.0 + 1e-9);
-        // The cells from `lo` to `hi` (in cells) that exist: truncating the clamped values
-        // floors them, without a call to `floor`.
-        let cells = |lo: f64, hi: f64, n: usize| {
-            let top = (n - 1) as f64;
-            (lo.max(0.0).min(top) as u32, hi.max(0.0).min(top) as u32)
-        };
-        let (y0, y1) = cells(local.y - reach, local.y + reach, self.ny);
+        // The cells from `lo` to `hi` (in cells) that exist: the conversion saturates (below 0
+        // and NaN to 0) and truncates (floors the rest), without a call to `floor`.
+        let cells = |lo: f64, hi: f64, last: u32| ((lo as u32).min(last), (hi as u32).min(last));
+        let (y0, y1) = cells(local.y - reach, local.y + reach, self.last.1);
         let mut end = front;
         for iy in y0 as usize..y1 as usize + 1 {
             // The disc's half-width (in cells) at the row's nearest edge to p: the cells of the
@@ -258,7 +278,7 @@ impl NeighborGrid {
             }
             // Not sqrt(reach^2 - gap^2), which underflows to 0 for a tiny reach.
             let half = (reach - gap).sqrt() * (reach + gap).sqrt() * self.aspect;
-            let (x0, x1) = cells(local.x - half, local.x + half, self.nx);
+            let (x0, x1) = cells(local.x - half, local.x + half, self.last.0);
             let row = iy * self.nx;
             let slice = &self.items[self.starts[row + x0 as usize] as usize
                 ..self.starts[row + x1 as usize + 1] as usize];
@@ -271,7 +291,7 @@ impl NeighborGrid {
             for &(q, j) in slice {
                 let d2 = (q - p).norm_squared();
                 let b = disc.bucket(d2);
-                let keep = (d2 < r2) & (j as usize != me);
+                let keep = d2 < r2;
                 out[end] = (d2, j as usize);
                 // Wrapping past 255 agents, which are sorted without the buckets.
                 disc.count[b as usize] = disc.count[b as usize].wrapping_add(u8::from(keep));
@@ -312,6 +332,7 @@ const BYTES: u64 = 0x0101_0101_0101_0101;
 /// ordering branches on the data.
 struct Disc {
     p: V2,
+    r: f64,
     r2: f64,
     me: usize,
     /// Buckets per unit of squared distance.
@@ -322,16 +343,17 @@ struct Disc {
 }
 
 impl Disc {
-    fn new(p: V2, r: f64, me: usize, buckets: usize) -> Self {
+    fn new(p: V2, r: f64, me: usize, plan: &Plan) -> Self {
         let r2 = r * r;
-        let scale = buckets as f64 / r2;
+        let scale = plan.buckets_f64 / r2;
         Self {
             p,
+            r,
             r2,
             me,
             // Infinite only for a tiny r2: all in one bucket then.
-            scale: if scale.is_finite() { scale } else { 0.0 },
-            buckets,
+            scale: if scale < f64::INFINITY { scale } else { 0.0 },
+            buckets: plan.buckets,
             count: [0; BUCKETS + 2],
         }
     }
@@ -347,7 +369,7 @@ impl Disc {
     }
 
     /// Orders `out`'s `found` agents after `out[..front]` (room), and returns where the nearest
-    /// `max` of them are in `out`, nearest first (equal distances by index).
+    /// `max` of them other than `me` are in `out`, nearest first (equal distances by index).
     fn sort(
         &mut self,
         out: &mut Vec<(f64, usize)>,
@@ -355,17 +377,15 @@ impl Disc {
         found: usize,
         max: usize,
     ) -> Range<usize> {
-        // Squared distances are >= +0 and never NaN (finite positions), so their bit patterns
-        // order like the numbers: (bits, index) is the total order "nearest, then lower index".
-        let key = |x: &(f64, usize)| (u128::from(x.0.to_bits()) << 64) | x.1 as u128;
-        let max = max.min(found);
         if found > FILED {
             let agents = &mut out[front..front + found];
-            if found > max {
-                agents.select_nth_unstable_by_key(max - 1, key);
+            let lead = self.lead_me(agents, found);
+            let (others, n) = (&mut agents[lead..], max.min(found - lead));
+            if others.len() > n {
+                others.select_nth_unstable_by_key(n - 1, key);
             }
-            agents[..max].sort_unstable_by_key(key);
-            return front..front + max;
+            others[..n].sort_unstable_by_key(key);
+            return front + lead..front + lead + n;
         }
         // Counts to starts, eight at a time: no sum exceeds `found` <= 255, so no byte carries
         // into the next, and multiplying by `BYTES` sums each byte and those below it.
@@ -393,25 +413,68 @@ impl Disc {
             sorted[*at as usize] = *x;
             *at += 1;
         }
-        if max > 0 {
+        // `me`, at distance 0, lies in bucket 0 (which `count[0]` now ends).
+        let lead = self.lead_me(sorted, self.count[0] as usize);
+        let n = max.min(found - lead);
+        if n > 0 {
             // Insertion: an agent can be out of order only among the few of its bucket, and only
-            // the buckets up to the one of the `max`-th agent need ordering (`count[b]` is now
-            // the end of bucket `b`). The test for order is the one data-dependent branch.
-            let end = self.count[self.bucket(sorted[max - 1].0) as usize] as usize;
-            let sorted = &mut sorted[..end];
-            for i in 1..end {
-                let x = sorted[i];
-                if key(&x) < key(&sorted[i - 1]) {
-                    let mut at = i;
-                    while at > 0 && key(&x) < key(&sorted[at - 1]) {
-                        sorted[at] = sorted[at - 1];
-                        at -= 1;
-                    }
-                    sorted[at] = x;
-                }
-            }
+            // the buckets up to the one of the `n`-th agent need ordering (`count[b]` is now the
+            // end of bucket `b`). The test for order is the one data-dependent branch.
+            let end = self.count[self.bucket(sorted[lead + n - 1].0) as usize] as usize;
+            insertion_sort(&mut sorted[lead..end]);
         }
-        to..to + max
+        to + lead..to + lead + n
+    }
+
+    /// Moves `me` to the front of `agents` and returns 1, or returns 0 where it is not among
+    /// them (an invalid `me`). It is looked for in `agents[..likely]` (where it comes first or
+    /// nearly), whose order is kept but for it. Beyond (where positions other than the grid's
+    /// put it), the others are then sorted whole.
+    fn lead_me(&self, agents: &mut [(f64, usize)], likely: usize) -> usize {
+        let is_me = |x: &(f64, usize)| x.1 == self.me;
+        if let Some(at) = agents[..likely].iter().position(is_me) {
+            lead(agents, at);
+            return 1;
+        }
+        match agents[likely..].iter().position(is_me) {
+            Some(at) => {
+                lead(agents, likely + at);
+                agents[1..].sort_unstable_by_key(key);
+                1
+            }
+            None => 0,
+        }
+    }
+}
+
+/// Moves `agents[at]` to the front, the others before it one place on.
+fn lead(agents: &mut [(f64, usize)], at: usize) {
+    let first = agents[at];
+    // Usually none to move: no call to `copy_within`.
+    for i in (0..at).rev() {
+        agents[i + 1] = agents[i];
+    }
+    agents[0] = first;
+}
+
+/// Squared distances are >= +0 and never NaN (finite positions), so their bit patterns order
+/// like the numbers: (bits, index) is the total order "nearest, then lower index".
+fn key(x: &(f64, usize)) -> u128 {
+    (u128::from(x.0.to_bits()) << 64) | x.1 as u128
+}
+
+/// Sorts `agents` by (squared distance, index), which the buckets nearly have them in.
+fn insertion_sort(agents: &mut [(f64, usize)]) {
+    for i in 1..agents.len() {
+        let x = agents[i];
+        if key(&x) < key(&agents[i - 1]) {
+            let mut at = i;
+            while at > 0 && key(&x) < key(&agents[at - 1]) {
+                agents[at] = agents[at - 1];
+                at -= 1;
+            }
+            agents[at] = x;
+        }
     }
 }
 
