@@ -44,7 +44,7 @@ pub struct Solution {
 /// violation point when infeasible). `scratch` is reused between calls to avoid allocation.
 pub fn solve(lines: &[Line], max_speed: f64, pref: V2, scratch: &mut Vec<Line>) -> Solution {
     let mut v = V2::zeros();
-    let failed = lp2(lines, max_speed, pref, false, &mut v);
+    let failed = lp2::<false>(lines, max_speed, pref, &mut v);
     if failed < lines.len() {
         let violation = lp3(lines, failed, max_speed, &mut v, scratch);
         Solution {
@@ -62,9 +62,16 @@ pub fn solve(lines: &[Line], max_speed: f64, pref: V2, scratch: &mut Vec<Line>) 
 }
 
 /// Optimum on line `i` subject to lines `0..i` and the disc; false if that segment is empty.
-/// With `direction_opt`, `opt` is a unit direction to go as far as possible along; otherwise
-/// the point to get closest to.
-fn lp1(lines: &[Line], i: usize, radius: f64, opt: V2, direction_opt: bool, out: &mut V2) -> bool {
+/// With `DIRECTION`, `opt` is a unit direction to go as far as possible along; otherwise the
+/// point to get closest to. (A const parameter, so that each caller's copy has no tests of
+/// the mode; the direction copy then picks `hi` or `lo` without a branch.)
+fn lp1<const DIRECTION: bool>(
+    lines: &[Line],
+    i: usize,
+    radius: f64,
+    opt: V2,
+    out: &mut V2,
+) -> bool {
     // Parameterise from the line's point nearest the origin: a far-away point (bisectors of
     // nearly parallel lines) would lose the disc bounds to cancellation.
     let dir = lines[i].dir;
@@ -91,23 +98,35 @@ fn lp1(lines: &[Line], i: usize, radius: f64, opt: V2, direction_opt: bool, out:
             continue;
         }
         let t = numer / denom;
+        // Selects rather than f64::min/max (which also test lo and hi for NaN): the same
+        // values, as lo and hi start from a non-NaN root and only ever take a t that compared
+        // (so non-NaN), a NaN t leaves the bound as min/max do, and for equal t and bound
+        // (signed zeros) both keep the bound (x86 minsd/maxsd return their second operand).
         if denom > 0.0 {
-            hi = hi.min(t);
+            hi = if t < hi { t } else { hi };
         } else {
-            lo = lo.max(t);
+            lo = if t > lo { t } else { lo };
         }
         if lo > hi {
             return false;
         }
     }
-    let t = if direction_opt {
+    let t = if DIRECTION {
         if opt.dot(&line.dir) > 0.0 {
             hi
         } else {
             lo
         }
     } else {
-        line.dir.dot(&(opt - line.point)).clamp(lo, hi)
+        // f64::clamp without its lo <= hi assertion (the loop returned when lo > hi, and
+        // neither is NaN): a NaN projection stays NaN as with clamp.
+        let t = line.dir.dot(&(opt - line.point));
+        let t = if t < lo { lo } else { t };
+        if t > hi {
+            hi
+        } else {
+            t
+        }
     };
     *out = line.point + t * line.dir;
     true
@@ -115,8 +134,8 @@ fn lp1(lines: &[Line], i: usize, radius: f64, opt: V2, direction_opt: bool, out:
 
 /// Adds the lines one by one; returns `lines.len()` on success, or the index of the first line
 /// that made the problem infeasible (`out` then holds the optimum of the lines before it).
-fn lp2(lines: &[Line], radius: f64, opt: V2, direction_opt: bool, out: &mut V2) -> usize {
-    *out = if direction_opt {
+fn lp2<const DIRECTION: bool>(lines: &[Line], radius: f64, opt: V2, out: &mut V2) -> usize {
+    *out = if DIRECTION {
         opt * radius
     } else if opt.norm_squared() > radius * radius {
         opt.normalize() * radius
@@ -126,7 +145,7 @@ fn lp2(lines: &[Line], radius: f64, opt: V2, direction_opt: bool, out: &mut V2) 
     for i in 0..lines.len() {
         if lines[i].violation(*out) > 0.0 {
             let before = *out;
-            if !lp1(lines, i, radius, opt, direction_opt, out) {
+            if !lp1::<DIRECTION>(lines, i, radius, opt, out) {
                 *out = before;
                 return i;
             }
@@ -168,7 +187,7 @@ fn lp3(lines: &[Line], begin: usize, radius: f64, out: &mut V2, projected: &mut 
             }
         }
         let before = *out;
-        if lp2(projected, radius, left_normal(line.dir), true, out) < projected.len() {
+        if lp2::<true>(projected, radius, left_normal(line.dir), out) < projected.len() {
             // Only reachable through rounding; keep the previous point.
             *out = before;
         }
