@@ -572,8 +572,13 @@ struct View<'a> {
 }
 
 impl View<'_> {
+    #[inline]
     fn slots(&self, i: usize) -> Range<usize> {
-        self.nbr_start[i] as usize..self.nbr_start[i + 1] as usize
+        // One bounds check for both ends.
+        match self.nbr_start[i..i + 2] {
+            [start, end] => start as usize..end as usize,
+            _ => unreachable!(),
+        }
     }
 
     /// The slots of a range of agents.
@@ -629,28 +634,44 @@ impl View<'_> {
         base: usize,
     ) {
         // Each slot's partner: where an earlier neighbour `j` lists `i` (a later one's list is
-        // searched as empty). Then the owned slots, gathered without a branch (which are owned
-        // is data-dependent).
+        // not searched: `i` owns the pair). Which neighbours are earlier follows no pattern a
+        // predictor could learn, so the slots are first sorted without a branch, the earlier
+        // neighbours' to the front half of `order` and the others' to the back half (each in
+        // slot order), and only then are the earlier ones' lists (all about as long) searched.
         let slots = self.slots(i);
-        block.owned.resize(slots.len(), 0);
-        let mut owned = 0;
-        for s in slots.clone() {
-            let j = self.nbr[s] as usize;
-            let list = self.slots(j);
-            let end = if j < i { list.end } else { list.start };
-            let at = position(&self.nbr[list.start..end], i as u32);
-            let t = if at == NONE {
+        let len = slots.len();
+        block.owned.resize(2 * len, 0);
+        let order = &mut block.owned[..2 * len];
+        let mut earlier = 0;
+        for (k, &j) in self.nbr[slots.clone()].iter().enumerate() {
+            let front = (j as usize) < i;
+            // The back holds the other `k - earlier` so far.
+            let at = if front { earlier } else { len + k - earlier };
+            order[at] = (slots.start + k) as u32;
+            earlier += usize::from(front);
+        }
+        // The front's owned slots are moved to the end of the front half, next to the back's,
+        // from the last one down, so that none overwrites a slot not yet read: the owned slots
+        // end up in `order[first..2 * len - earlier]`.
+        let mut first = len;
+        for k in (0..earlier).rev() {
+            let s = order[k] as usize;
+            let list = self.slots(self.nbr[s] as usize);
+            let at = position(&self.nbr[list.clone()], i as u32);
+            partner[s - base] = if at == NONE {
                 NONE
             } else {
                 list.start as u32 + at
             };
-            partner[s - base] = t;
-            block.owned[owned] = s as u32;
-            owned += usize::from(t == NONE);
+            order[first - 1] = s as u32;
+            first -= usize::from(at == NONE);
         }
+        // The owned pairs' order does not matter: each slot gets its own pair's result (the
+        // back's partners, all `NONE`, are written here too).
         let motion = Motion::new(self.agents[i].vel);
-        for &s in &block.owned[..owned] {
+        for &s in &block.owned[first..2 * len - earlier] {
             let s = s as usize;
+            partner[s - base] = NONE;
             let j = self.nbr[s] as usize;
             if !self.is_near(i, j, s - slots.start) {
                 avoid[s - base] = Slot::far();
