@@ -248,7 +248,8 @@ struct Block {
     ends: Vec<u32>,
     found: Vec<(f64, usize)>,
     pair: PairScratch,
-    /// Phase 2: the agent's owned slots; the far ones of all the block's agents, and where
+    /// Phase 2: the agent's slots sorted into earlier and later neighbours, then its owned
+    /// ones (see `View::own_pairs`); the far owned ones of all the block's agents, and where
     /// each agent's end.
     owned: Vec<u32>,
     pending: Vec<u32>,
