@@ -222,8 +222,7 @@ pub(crate) fn cull_far(pair: &Pair, a: Motion, limits: &Limits) -> Option<Bound>
 fn distance_bound(pair: &Pair, limits: &Limits) -> Option<Bound> {
     let (p, w, inv_tau) = (pair.p, pair.w, limits.inv_tau);
     let reach = pair.a.reach + pair.b.reach;
-    let size = p.x.abs() + p.y.abs() + reach;
-    let tol = MARGIN * (1.0 + w.x.abs() + w.y.abs() + size * inv_tau);
+    let tol = tolerance(w, p.x.abs() + p.y.abs() + reach, inv_tau);
     // Positive only when |p| > reach: the shapes are apart.
     let gap = (p.norm() - reach) * inv_tau - w.norm() - tol;
     (gap > 0.0).then_some(Bound {
@@ -231,6 +230,13 @@ fn distance_bound(pair: &Pair, limits: &Limits) -> Option<Bound> {
         normal: V2::zeros(),
         tol,
     })
+}
+
+/// The rounding margin of a bound on `d` for relative velocity `w` and a pair of the given
+/// size (`|p_x| + |p_y|` plus the reaches).
+#[inline]
+fn tolerance(w: V2, size: f64, inv_tau: f64) -> f64 {
+    MARGIN * (1.0 + w.x.abs() + w.y.abs() + size * inv_tau)
 }
 
 /// Step 1, `None` when the shapes may touch, or when a cheap necessary condition shows that
@@ -257,7 +263,7 @@ fn bound(pair: &Pair, a: Motion, limits: &Limits) -> Option<Bound> {
     if !(hi < -MARGIN * size) {
         return None; // not provably apart
     }
-    let tol = MARGIN * (1.0 + w.x.abs() + w.y.abs() + size * inv_tau);
+    let tol = tolerance(w, size, inv_tau);
     let gap = m.dot(&w) - hi * inv_tau - tol;
     (gap > 0.0).then_some(Bound {
         gap,

@@ -141,8 +141,9 @@ fn negated(avoid: Avoidance) -> Avoidance {
 ///
 /// The full LP adds the far neighbours' lines after the near ones, and its incremental pass
 /// skips every later line violated at the current optimum by no more than the current level:
-/// 0 while feasible, the min-max level once infeasible (`lp::Solution::violation`). So if no far line is
-/// violated by more at the near optimum, the full solution is the near one, bit for bit.
+/// 0 while feasible, the min-max level once infeasible (`lp::Solution::violation`). So if no
+/// far line is violated by more at the near optimum, the full solution is the near one, bit
+/// for bit.
 /// Many far lines cannot be, which the cull test proves cheaply with a slack `s`
 /// ([`cull::Limits::with_slack`]: the line's violation anywhere in the speed disc `|v| <= S`
 /// is at most `s`): `s` = the level when infeasible, `S - |v_near|` when feasible (the line
@@ -623,6 +624,19 @@ impl View<'_> {
         pair_avoidance(p, w, b, neg_a, self.params.time_horizon, self.dt, scratch)
     }
 
+    /// Agent `i`'s exact avoidance of `j` for a pair `j` owns: as the owner computes it,
+    /// negated (one side per pair, so the same bits whoever needs it).
+    fn reversed_exact(
+        &self,
+        i: usize,
+        j: usize,
+        p: V2,
+        w: V2,
+        scratch: &mut PairScratch,
+    ) -> Avoidance {
+        negated(self.exact(j, i, -p, -w, scratch))
+    }
+
     /// Phase 2 for agent `i`: the partner of each of its slots and, for the near pairs it
     /// owns, the cull bound or the exact avoidance (`partner` and `avoid` are its block's, from
     /// slot `base`). Its far owned pairs are left for phase 3, in `block.pending`.
@@ -825,11 +839,11 @@ impl View<'_> {
         let motion = Motion::new(vel);
         for s in slots {
             let (own, slot) = self.owner_slot(s);
-            let j = self.nbr[s] as usize;
             let avoid = match (own, slot.kind) {
                 (_, Kind::Exact) => slot.avoidance_for(own),
                 (true, Kind::Culled) => continue, // never binds: the LP is the same without it
                 (true, _) => {
+                    let j = self.nbr[s] as usize;
                     let (p, w) = self.relative(i, j);
                     if cull::cull(&self.pair(i, j, p, w), motion, self.limits).is_some() {
                         continue;
@@ -838,6 +852,7 @@ impl View<'_> {
                 }
                 // The owner skipped it: whether `i` may too depends on its own velocity.
                 (false, kind) => {
+                    let j = self.nbr[s] as usize;
                     let (p, w) = self.relative(i, j);
                     // Culled with the owner's slack: the plain test's bound, if it culls.
                     let bound = if kind == Kind::Culled {
@@ -852,8 +867,7 @@ impl View<'_> {
                     }) {
                         continue;
                     }
-                    // As its owner would have computed it, negated: one side per pair.
-                    negated(self.exact(j, i, -p, -w, &mut block.pair))
+                    self.reversed_exact(i, j, p, w, &mut block.pair)
                 }
             };
             if let Some(line) = usable(reciprocal_line(vel, avoid)) {
@@ -887,7 +901,7 @@ impl View<'_> {
                     {
                         continue;
                     }
-                    negated(self.exact(j, i, -p, -w, &mut block.pair))
+                    self.reversed_exact(i, j, p, w, &mut block.pair)
                 }
             };
             if let Some(line) = usable(reciprocal_line(vel, avoid)) {
