@@ -1,9 +1,10 @@
 //! Fixed work for load-insensitive cost counts (`perf stat -e instructions:u,task-clock`):
-//! `cargo run -p frvo --release --example step_cost -- <frvo|rvo> <neighbours> <agents> <steps>`
-//! steps the benchmark's crowd (see `benches/crowd.rs`) and prints a checksum of the velocities
-//! and a hash of their bits (equal hashes: the same velocities bit for bit).
+//! `cargo run -p frvo --release --example step_cost -- <frvo|rvo> <neighbours> <agents> <steps>
+//! [threads]` steps the benchmark's crowd (see `benches/crowd.rs`) on `threads` (default 1, so
+//! that instruction counts hold no helper's spinning; 0 = every core) and prints a checksum of
+//! the velocities and a hash of their bits (equal hashes: the same velocities bit for bit).
 
-use frvo::{make_model, MotionKind};
+use frvo::{make_model, MotionKind, MotionParams};
 
 #[path = "../benches/support/crowd.rs"]
 mod support;
@@ -21,8 +22,14 @@ fn main() {
         Some("rvo") => MotionKind::Rvo,
         _ => MotionKind::Frvo,
     };
-    let (k, n, steps) = (arg(2, 10), arg(3, 200), arg(4, 200));
-    let mut model = make_model(kind, params(k));
+    let (k, n, steps, threads) = (arg(2, 10), arg(3, 200), arg(4, 200), arg(5, 1));
+    let mut model = make_model(
+        kind,
+        MotionParams {
+            threads,
+            ..params(k)
+        },
+    );
     let agents = crowd(n);
     let (mut checksum, mut bits) = (0.0, FNV_OFFSET);
     for _ in 0..steps {

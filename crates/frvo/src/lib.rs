@@ -17,6 +17,7 @@ pub mod model;
 pub mod models;
 pub mod neighbors;
 mod pair;
+mod team;
 pub mod velocity_obstacle;
 
 pub use agent::Agent;

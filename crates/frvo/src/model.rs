@@ -50,9 +50,9 @@ pub struct MotionParams {
     pub sf_strength: f64,
     /// Social forces: repulsion range B, pixels.
     pub sf_range: f64,
-    /// Threads for a crowd step (FRVO and circular RVO): 0 uses rayon's global pool (every
-    /// core, or `RAYON_NUM_THREADS`), 1 stays on the caller's thread. Small crowds (under
-    /// about 1,000 agent-neighbour pairs) always stay on one thread. The velocities are the
+    /// Threads for a crowd step (FRVO and circular RVO), the caller's included: 0 is every
+    /// core (`std::thread::available_parallelism`), 1 stays on the caller's thread. Small
+    /// crowds (under 300 agent-neighbour pairs) always stay on one thread. The velocities are the
     /// same bit for bit whatever the number.
     pub threads: usize,
 }

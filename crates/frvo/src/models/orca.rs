@@ -17,9 +17,7 @@
 //! any number of threads gives the same velocities bit for bit.
 
 use std::ops::Range;
-use std::sync::Arc;
-
-use rayon::prelude::*;
+use std::sync::{Arc, Mutex, OnceLock, PoisonError};
 
 use crate::agent::Agent;
 use crate::cull::{self, Body, Bound, Limits, Motion, Pair};
@@ -28,15 +26,17 @@ use crate::lp::{self, Line};
 use crate::model::{MotionKind, MotionModel, MotionParams};
 use crate::neighbors::NeighborGrid;
 use crate::pair::{pair_avoidance, PairScratch, Shapes};
+use crate::team::Team;
 use crate::velocity_obstacle::{avoidance_circle, reciprocal_line, Avoidance};
 
 /// Below this many neighbour slots (agents x neighbours) a step stays on one thread: handing
-/// work to threads costs a few microseconds per phase.
-const PARALLEL_MIN_SLOTS: usize = 1000;
+/// out a phase costs about a microsecond, and a crowd needs blocks for both threads (measured
+/// break-even on the 2-core benchmark machine: about 20-30 agents with 10 neighbours).
+const PARALLEL_MIN_SLOTS: usize = 300;
 /// Blocks per thread, so that a thread that finishes early can take another block.
 const BLOCKS_PER_THREAD: usize = 4;
 /// Fewest agents in a block.
-const MIN_BLOCK_AGENTS: usize = 16;
+const MIN_BLOCK_AGENTS: usize = 8;
 /// No slot: past the end of every slot array.
 const NONE: u32 = u32::MAX;
 /// Each agent's nearest neighbours whose half-planes are solved first (FRVO, phase 3). In
@@ -189,53 +189,69 @@ impl Near {
     }
 }
 
-/// Where a step's phases run.
+/// Where a step's phases run: on the caller alone, or on a team of helper threads with it.
 #[derive(Clone, Debug)]
-enum Threads {
-    One,
-    /// Rayon's global pool (all cores, or `RAYON_NUM_THREADS`).
-    Global,
-    Pool(Arc<rayon::ThreadPool>),
+struct Threads {
+    /// Threads a parallel step uses, the caller's included.
+    count: usize,
+    /// Every core: the process's one team, shared by all such models (as a global pool
+    /// would be), so that a model made per call does not start threads per call.
+    every_core: bool,
+    /// Taken at the first parallel step; clones of the model share it. A team busy with
+    /// another caller's phase leaves this caller to run its phase alone (see [`Team::run`]).
+    team: Option<Arc<Team>>,
 }
 
 impl Threads {
+    /// `threads` as in [`MotionParams::threads`]: 0 is every core.
     fn new(threads: usize) -> Self {
-        match threads {
-            0 => Self::Global,
-            1 => Self::One,
-            n => rayon::ThreadPoolBuilder::new()
-                .num_threads(n)
-                .build()
-                .map_or(Self::Global, |pool| Self::Pool(Arc::new(pool))),
+        let count = match threads {
+            0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+            n => n,
+        };
+        Self {
+            count,
+            every_core: threads == 0,
+            team: None,
         }
     }
 
     fn count(&self) -> usize {
-        match self {
-            Self::One => 1,
-            Self::Global => rayon::current_num_threads(),
-            Self::Pool(pool) => pool.current_num_threads(),
+        self.count
+    }
+
+    /// Takes the team if this is the first parallel step.
+    fn prepare(&mut self, parallel: bool) {
+        static EVERY_CORE: OnceLock<Arc<Team>> = OnceLock::new();
+        if parallel && self.team.is_none() {
+            let count = self.count;
+            self.team = Some(if self.every_core {
+                Arc::clone(EVERY_CORE.get_or_init(|| Arc::new(Team::new(count))))
+            } else {
+                Arc::new(Team::new(count))
+            });
         }
     }
 
-    /// Runs `body` on one of this pool's threads when `parallel` (so that the phases inside
-    /// it hand work between the pool's threads, and the caller waits once per step rather
-    /// than once per phase), else on the caller's thread.
-    fn install<R: Send>(&self, parallel: bool, body: impl FnOnce() -> R + Send) -> R {
-        match self {
-            Self::Pool(pool) if parallel => pool.install(body),
-            Self::Global if parallel => rayon::scope(|_| body()),
-            _ => body(),
-        }
-    }
-
-    /// Calls `work` on every item: spread over the current pool's threads when `parallel`
-    /// (inside [`Threads::install`]).
-    fn for_each<T: Send>(parallel: bool, items: Vec<T>, work: impl Fn(T) + Send + Sync) {
-        if parallel {
-            items.into_par_iter().for_each(work);
-        } else {
-            items.into_iter().for_each(work);
+    /// Calls `work` on every item: spread over the team when `parallel` (after
+    /// [`Threads::prepare`]), each item taken by whichever thread claims its index.
+    fn for_each<T: Send>(&self, parallel: bool, items: Vec<T>, work: impl Fn(T) + Sync) {
+        match &self.team {
+            Some(team) if parallel => {
+                let items: Vec<Mutex<Option<T>>> =
+                    items.into_iter().map(|x| Mutex::new(Some(x))).collect();
+                team.run(items.len(), &|k| {
+                    // Each index is claimed once, so the lock is never contended.
+                    let item = items[k]
+                        .lock()
+                        .unwrap_or_else(PoisonError::into_inner)
+                        .take();
+                    if let Some(item) = item {
+                        work(item);
+                    }
+                });
+            }
+            _ => items.into_iter().for_each(work),
         }
     }
 }
@@ -394,7 +410,7 @@ impl Orca {
         let ellipse = self.footprint == Footprint::Ellipse;
         let plan = grid.plan(max);
         let blocks: Vec<&mut Block> = self.blocks.iter_mut().collect();
-        Threads::for_each(parallel, blocks, |block| {
+        self.threads.for_each(parallel, blocks, |block| {
             if ellipse {
                 block.prepare_shapes(&agents[block.agents.clone()], unit, limits);
             }
@@ -459,13 +475,14 @@ impl Orca {
             .zip(split_mut(&mut avoid[..slots], lens()))
             .zip(ranges.iter().map(|r| r.start))
             .collect();
-        Threads::for_each(parallel, work, |(((block, partner), avoid), base)| {
-            block.pending.clear();
-            block.pending_ends.clear();
-            for i in block.agents.clone() {
-                view.own_pairs(i, block, partner, avoid, base);
-            }
-        });
+        self.threads
+            .for_each(parallel, work, |(((block, partner), avoid), base)| {
+                block.pending.clear();
+                block.pending_ends.clear();
+                for i in block.agents.clone() {
+                    view.own_pairs(i, block, partner, avoid, base);
+                }
+            });
         (self.partner, self.avoid, self.blocks) = (partner, avoid, blocks);
     }
 
@@ -485,12 +502,13 @@ impl Orca {
             .zip(split_mut(&mut far[..slots], ranges.iter().map(|r| r.len())))
             .zip(ranges.iter().map(|r| r.start))
             .collect();
-        Threads::for_each(parallel, work, |((block, far), base)| {
-            block.near.clear();
-            for (k, i) in block.agents.clone().enumerate() {
-                view.solve_near(i, k, block, far, base);
-            }
-        });
+        self.threads
+            .for_each(parallel, work, |((block, far), base)| {
+                block.near.clear();
+                for (k, i) in block.agents.clone().enumerate() {
+                    view.solve_near(i, k, block, far, base);
+                }
+            });
         (self.far, self.blocks) = (far, blocks);
     }
 
@@ -509,7 +527,7 @@ impl Orca {
             .zip(split_mut(&mut out, lens.iter().copied()))
             .zip(split_mut(&mut feasible, lens.iter().copied()))
             .collect();
-        Threads::for_each(parallel, work, |((block, vel), ok)| {
+        self.threads.for_each(parallel, work, |((block, vel), ok)| {
             (block.near_kept, block.full_solved) = (0, 0);
             let first = block.agents.start;
             for i in block.agents.clone() {
@@ -990,8 +1008,8 @@ impl MotionModel for Orca {
         let parallel = self.threads.count() > 1
             && n * self.params.max_neighbors.min(n.saturating_sub(1)) >= PARALLEL_MIN_SLOTS;
         self.parallel = parallel;
-        let threads = self.threads.clone();
-        threads.install(parallel, || self.step_on(agents, sane_dt(dt), parallel))
+        self.threads.prepare(parallel);
+        self.step_on(agents, sane_dt(dt), parallel)
     }
 }
 
@@ -1117,9 +1135,10 @@ mod tests {
                     v.iter().map(|x| [x.x.to_bits(), x.y.to_bits()]).collect()
                 };
                 assert_eq!(bits(&v), bits(&w), "{footprint:?}, crowd {k} of {n}");
+                let slots = n * params.max_neighbors.min(n.saturating_sub(1));
                 assert_eq!(
                     reused.last_parallel(),
-                    n >= 100,
+                    slots >= PARALLEL_MIN_SLOTS,
                     "{footprint:?}, {n} agents"
                 );
             }
