@@ -6,7 +6,8 @@
 //! interrupt to a halted core: measured on the 2-core benchmark machine, 28 us on average
 //! between back-to-back calls and 140 us after 1 ms idle, as long as a whole step of 200
 //! agents. Here the caller starts on the work at once and never sleeps; helpers join as soon
-//! as they are awake, spin between phases and for [`SPIN`] after one, and only then park.
+//! as they are awake, wait between phases and for [`SPIN`] after one (spinning briefly, then
+//! yielding the core between checks), and only then park.
 //!
 //! Work is handed out by index from a shared counter, so whoever is awake takes the next
 //! block: a helper that wakes late only means the caller does more of the blocks itself. In a
@@ -24,9 +25,11 @@ use std::time::{Duration, Instant};
 /// How long an idle helper spins for the next phase before it parks: longer than the serial
 /// work between a step's phases, short enough that an idle tracker costs nothing.
 const SPIN: Duration = Duration::from_micros(100);
-/// Spins between a waiting caller's yields to the OS (a helper holding a block may have been
-/// descheduled, e.g. with more threads than cores).
-const SPINS_PER_YIELD: u32 = 1 << 12;
+/// Spins before a waiting thread starts yielding to the OS between checks: a thread that only
+/// spins can hold a core that the thread it waits for needs (another process's spinning
+/// threads, e.g. a BLAS or onnxruntime pool, can leave both on one core), and a scheduler
+/// time slice is a millisecond or more.
+const SPINS_BEFORE_YIELD: u32 = 64;
 
 /// One phase: `count` blocks, each run once by whoever claims it.
 struct Job<'a> {
@@ -201,16 +204,21 @@ impl Drop for Free<'_> {
     }
 }
 
-/// Spins until `ready`, yielding to the OS now and then.
+/// Waits until `ready`: spins briefly, then yields to the OS between checks.
 fn wait_until(ready: impl Fn() -> bool) {
-    let mut spins = 0u32;
+    let mut spins = 0;
     while !ready() {
-        spins = spins.wrapping_add(1);
-        if spins % SPINS_PER_YIELD == 0 {
-            thread::yield_now();
-        } else {
-            std::hint::spin_loop();
-        }
+        pause(&mut spins);
+    }
+}
+
+/// One wait between checks: a spin for the first [`SPINS_BEFORE_YIELD`], then a yield.
+fn pause(spins: &mut u32) {
+    if *spins < SPINS_BEFORE_YIELD {
+        *spins += 1;
+        std::hint::spin_loop();
+    } else {
+        thread::yield_now();
     }
 }
 
@@ -219,6 +227,7 @@ fn helper(shared: &Shared, me: usize) {
     let mut seen = shared.epoch.load(SeqCst);
     loop {
         let mut idle_since = Instant::now();
+        let mut spins = 0;
         loop {
             let epoch = shared.epoch.load(SeqCst);
             // Checked here, not only after a new epoch: a helper that started after the
@@ -231,7 +240,7 @@ fn helper(shared: &Shared, me: usize) {
                 break;
             }
             if idle_since.elapsed() < SPIN {
-                std::hint::spin_loop();
+                pause(&mut spins);
                 continue;
             }
             // Park unless a phase came in meanwhile: the caller sets `epoch` before it reads
@@ -244,6 +253,7 @@ fn helper(shared: &Shared, me: usize) {
             }
             shared.parked[me].store(false, SeqCst);
             idle_since = Instant::now();
+            spins = 0;
         }
         shared.active.fetch_add(1, SeqCst);
         let job = shared.job.load(SeqCst);
