@@ -22,7 +22,7 @@ use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
-/// How long an idle helper spins for the next phase before it parks: longer than the serial
+/// How long an idle helper waits for the next phase before it parks: longer than the serial
 /// work between a step's phases, short enough that an idle tracker costs nothing.
 const SPIN: Duration = Duration::from_micros(100);
 /// Spins before a waiting thread starts yielding to the OS between checks: a thread that only
