@@ -113,6 +113,32 @@ def test_threads_give_the_same_velocities(motion: str) -> None:
     assert not np.allclose(one, vel)  # the crowd constrains its agents
 
 
+def test_concurrent_callers_share_the_threads_safely() -> None:
+    # Python threads stepping at once (the GIL is released): every-core steps share one set
+    # of helper threads, and a caller that finds it busy runs alone. Each must still get the
+    # one-thread velocities.
+    from concurrent.futures import ThreadPoolExecutor
+
+    rng = np.random.default_rng(5)
+    crowds = []
+    for n in (60, 200, 400, 900):
+        pos = rng.uniform(0.0, 25.0 * np.sqrt(n), size=(n, 2))
+        vel, pref = rng.uniform(-2.0, 2.0, size=(2, n, 2))
+        axes = np.column_stack([rng.uniform(10, 30, n), rng.uniform(20, 50, n)])
+        crowds.append((pos, vel, pref, axes))
+
+    def step(crowd: tuple[np.ndarray, ...], threads: int) -> np.ndarray:
+        vel, _ = _core.step_crowd(*crowd, motion="frvo", max_speed=4.0, threads=threads)
+        return vel
+
+    expected = [step(c, 1) for c in crowds]
+    jobs = [(k, threads) for _ in range(5) for k in range(len(crowds)) for threads in (0, 2)]
+    with ThreadPoolExecutor(max_workers=4) as pool:
+        results = list(pool.map(lambda job: step(crowds[job[0]], job[1]), jobs))
+    for (k, _), got in zip(jobs, results, strict=True):
+        np.testing.assert_array_equal(got, expected[k])
+
+
 def test_constant_velocity_returns_preferred() -> None:
     rng = np.random.default_rng(0)
     pos, vel, pref = rng.normal(size=(3, 30, 2)) * 10

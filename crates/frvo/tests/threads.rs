@@ -99,3 +99,48 @@ fn threads_give_the_same_velocities_bit_for_bit() {
 fn cores() -> usize {
     std::thread::available_parallelism().map_or(1, |n| n.get())
 }
+
+/// Models stepping on several threads at once: clones of one model share its helper threads,
+/// every-core models share the process's, and a caller that finds them busy runs alone. Each
+/// must still give the one-thread velocities.
+#[test]
+fn concurrent_callers_give_the_same_velocities() {
+    let crowds: Vec<Vec<Agent>> = [60, 200, 400, 900]
+        .into_iter()
+        .map(|n| crowd(n, 100 + n as u64))
+        .collect();
+    let params = |threads| MotionParams {
+        neighbor_radius: 120.0,
+        max_neighbors: 10,
+        max_speed: 4.0,
+        threads,
+        ..MotionParams::default()
+    };
+    let expected: Vec<Vec<V2>> = crowds
+        .iter()
+        .map(|c| step(Footprint::Ellipse, params(1), c).0)
+        .collect();
+    let mut own = Orca::new(params(2), Footprint::Ellipse);
+    own.step(&crowds[3], 1.0); // starts its helper threads, which its clones share
+    std::thread::scope(|scope| {
+        for caller in 0..4 {
+            let (crowds, expected) = (&crowds, &expected);
+            let mut models = [
+                own.clone(),
+                Orca::new(params(0), Footprint::Ellipse),
+                Orca::new(params(3), Footprint::Ellipse),
+            ];
+            scope.spawn(move || {
+                for round in 0..20 {
+                    let k = (caller + round) % crowds.len();
+                    let model = &mut models[round % models.len()];
+                    let v = model.step(&crowds[k], 1.0);
+                    let same = v.iter().zip(&expected[k]).all(|(a, b)| {
+                        a.x.to_bits() == b.x.to_bits() && a.y.to_bits() == b.y.to_bits()
+                    });
+                    assert!(same, "caller {caller}, round {round}, crowd {k}");
+                }
+            });
+        }
+    });
+}
