@@ -270,19 +270,22 @@ fn helper(shared: &Shared, me: usize) {
 mod tests {
     use super::*;
 
+    /// Runs `count` blocks on `team` and checks that each ran exactly once.
+    fn check_every_block_runs_once(team: &Team, count: usize) {
+        let hits: Vec<AtomicUsize> = (0..count).map(|_| AtomicUsize::new(0)).collect();
+        team.run(count, &|b| {
+            hits[b].fetch_add(1, Relaxed);
+        });
+        let runs: Vec<usize> = hits.iter().map(|h| h.load(Relaxed)).collect();
+        assert!(runs.iter().all(|&r| r == 1), "{count} blocks: {runs:?}");
+    }
+
     #[test]
     fn every_block_runs_once_whatever_the_team() {
         for threads in [1, 2, 3, 8] {
             let team = Team::new(threads);
             for count in [0, 1, 2, 7, 64, 1000] {
-                let hits: Vec<AtomicUsize> = (0..count).map(|_| AtomicUsize::new(0)).collect();
-                team.run(count, &|b| {
-                    hits[b].fetch_add(1, Relaxed);
-                });
-                assert!(
-                    hits.iter().all(|h| h.load(Relaxed) == 1),
-                    "{threads} {count}"
-                );
+                check_every_block_runs_once(&team, count);
             }
         }
     }
@@ -322,11 +325,7 @@ mod tests {
             "an idle helper should park"
         );
         // And wakes for the next phase.
-        let hits = AtomicUsize::new(0);
-        team.run(16, &|_| {
-            hits.fetch_add(1, Relaxed);
-        });
-        assert_eq!(hits.load(Relaxed), 16);
+        check_every_block_runs_once(&team, 16);
     }
 
     #[test]
@@ -341,11 +340,7 @@ mod tests {
         }));
         let payload = result.expect_err("the panic must reach the caller");
         assert_eq!(payload.downcast_ref::<&str>(), Some(&"block 17"));
-        let hits = AtomicUsize::new(0);
-        team.run(32, &|_| {
-            hits.fetch_add(1, Relaxed);
-        });
-        assert_eq!(hits.load(Relaxed), 32);
+        check_every_block_runs_once(&team, 32);
     }
 
     #[test]
@@ -356,11 +351,7 @@ mod tests {
                 let team = Arc::clone(&team);
                 thread::spawn(move || {
                     for _ in 0..200 {
-                        let hits: Vec<AtomicUsize> = (0..40).map(|_| AtomicUsize::new(0)).collect();
-                        team.run(40, &|b| {
-                            hits[b].fetch_add(1, Relaxed);
-                        });
-                        assert!(hits.iter().all(|h| h.load(Relaxed) == 1));
+                        check_every_block_runs_once(&team, 40);
                     }
                 })
             })
