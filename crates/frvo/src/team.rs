@@ -10,9 +10,9 @@
 //! yielding the core between checks), and only then park.
 //!
 //! Work is handed out by index from a shared counter, so whoever is awake takes the next
-//! block: a helper that wakes late only means the caller does more of the blocks itself. In a
-//! forked child (which has none of the parent's threads) the caller runs every block alone and
-//! dropping the team leaves the missing helpers unjoined.
+//! block: a helper that wakes late only means the caller does more of the blocks itself. A
+//! forked child (which has none of the parent's threads) steps on the caller alone, and
+//! dropping the team there leaves the missing helpers unjoined.
 
 use std::any::Any;
 use std::panic::{self, AssertUnwindSafe};
@@ -123,8 +123,10 @@ impl Team {
         }
     }
 
-    /// Whether the helpers are there to help (not in a forked child).
-    fn has_helpers(&self) -> bool {
+    /// Whether the helpers are there to help (not in a forked child): [`Team::run`] needs
+    /// them (a child's copy of the state may count a helper that was mid-phase at the fork).
+    /// A system call, so asked once per step, not per phase.
+    pub(crate) fn has_helpers(&self) -> bool {
         !self.helpers.is_empty() && std::process::id() == self.process
     }
 
@@ -134,9 +136,10 @@ impl Team {
     }
 
     /// Runs `work(0..count)`, each index once, on the caller and whichever helpers are
-    /// awake; returns when all have finished (resuming a block's panic, if any).
+    /// awake; returns when all have finished (resuming a block's panic, if any). Only where
+    /// [`Team::has_helpers`].
     pub(crate) fn run(&self, count: usize, work: &(dyn Fn(usize) + Sync)) {
-        if count <= 1 || !self.has_helpers() || self.busy.swap(true, Acquire) {
+        if count <= 1 || self.helpers.is_empty() || self.busy.swap(true, Acquire) {
             (0..count).for_each(work);
             return;
         }

@@ -220,8 +220,9 @@ impl Threads {
         self.count
     }
 
-    /// Takes the team if this is the first parallel step.
-    fn prepare(&mut self, parallel: bool) {
+    /// Takes the team if this is the first parallel step; returns whether the step can
+    /// spread over it (not in a forked child, which has none of its helpers).
+    fn prepare(&mut self, parallel: bool) -> bool {
         static EVERY_CORE: OnceLock<Arc<Team>> = OnceLock::new();
         if parallel && self.team.is_none() {
             let count = self.count;
@@ -231,6 +232,7 @@ impl Threads {
                 Arc::new(Team::new(count))
             });
         }
+        parallel && self.team.as_ref().is_some_and(|team| team.has_helpers())
     }
 
     /// Calls `work` on every item: spread over the team when `parallel` (after
@@ -1007,8 +1009,8 @@ impl MotionModel for Orca {
         let n = agents.len();
         let parallel = self.threads.count() > 1
             && n * self.params.max_neighbors.min(n.saturating_sub(1)) >= PARALLEL_MIN_SLOTS;
+        let parallel = self.threads.prepare(parallel);
         self.parallel = parallel;
-        self.threads.prepare(parallel);
         self.step_on(agents, sane_dt(dt), parallel)
     }
 }
