@@ -1,12 +1,20 @@
-//! The one place where Rust errors become Python exceptions. Every bad input or parameter is a
-//! `ValueError` (the Python wrapper refines them into densepeds.errors types).
+//! The one place where Rust errors become Python exceptions: each [`TrackError`] by its kind,
+//! `InvalidInput` as `densepeds.errors.InputError`, `InvalidParameter` as
+//! `densepeds.errors.ParameterError` (a `ValueError`). The rest of the binding builds a
+//! `TrackError` and calls [`track_error`]; no other module names a Python exception type.
 
 use assoc::TrackError;
-use pyo3::exceptions::PyValueError;
 use pyo3::PyErr;
 
+pyo3::import_exception!(densepeds.errors, InputError);
+pyo3::import_exception!(densepeds.errors, ParameterError);
+
+/// The Python exception for `e`, carrying its message without the kind prefix.
 pub fn track_error(e: TrackError) -> PyErr {
-    PyValueError::new_err(e.to_string())
+    match e {
+        TrackError::InvalidInput(msg) => InputError::new_err(msg),
+        TrackError::InvalidParameter(msg) => ParameterError::new_err(msg),
+    }
 }
 
 /// Bad array shape, dtype or value detected in the glue itself.
