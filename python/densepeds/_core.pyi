@@ -1,4 +1,5 @@
-"""Type stubs for the Rust extension `densepeds._core` (hand-checked against the bindings)."""
+"""Type stubs for the Rust extension `densepeds._core`, checked against it by tests/test_stub.py;
+the tracker's parameters are written by scripts/gen_params.py."""
 
 from typing import TypedDict
 
@@ -30,14 +31,14 @@ def step_crowd(
     """One step of a crowd motion model ("frvo", "rvo", "sf" or "cv") on [N, 2] arrays.
 
     axes[:, 0] is the ellipse extent along the direction of motion (l), axes[:, 1] across it (w),
-    in pixels; velocities in pixels per frame. Parameters left as None take the Rust defaults
-    (neighbor_radius 150, max_neighbors 10, time_horizon 5, max_speed 50, polygon_sides 8,
-    sf_relaxation_time 2, sf_strength 1, sf_range 10, threads 0). threads: 0 spreads a large
-    crowd's step over every core (the calling thread and helper threads started once per
+    in pixels; velocities in pixels per frame. The keyword parameters are the tracker's motion
+    parameters, with the same ranges; None takes their defaults (``PARAMS``). threads: 0 spreads
+    a large crowd's step over every core (the calling thread and helper threads started once per
     process), 1 keeps it on the calling thread, n uses n threads in all; the velocities are the
     same whatever the number. Returns (new_velocities, new_positions) with new_positions =
-    positions + dt * new_velocities. Raises ValueError for bad shapes and
-    densepeds.errors.ParameterError (a ValueError) for bad parameters. Releases the GIL.
+    positions + dt * new_velocities. Raises densepeds.errors.InputError for arrays of the wrong
+    shape or dtype (complex included) and ParameterError for bad parameters (both ValueErrors).
+    Releases the GIL.
     """
 
 # --- tracker (assoc) ----------------------------------------------------------------------------

@@ -132,19 +132,19 @@ def _as_float_array(x: object, name: str) -> npt.NDArray[np.floating]:
         return x
     try:
         a = np.asarray(x)
-        if a.dtype.kind not in "biuf":
-            raise InputError(f"{name} must hold real numbers, got dtype {a.dtype}")
-        return np.asarray(a, dtype=np.float64)
     except (TypeError, ValueError) as e:
         raise InputError(f"{name} must be numeric: {e}") from None
+    if a.dtype.kind not in "biuf":  # complex, strings, objects: refused, not truncated
+        raise InputError(f"{name} must hold real numbers, got dtype {a.dtype}")
+    return a.astype(np.float64)
 
 
 class Tracker:
     """Online pedestrian tracker (see the module docstring for the parameters).
 
     Raises ParameterError for an unknown parameter or a value outside its range. A tracker holds
-    one sequence's state: use one per thread (an update while another thread is updating the same
-    tracker raises RuntimeError instead of mixing their frames).
+    one sequence's state: use one per thread (using a tracker while another thread is updating it
+    raises RuntimeError instead of mixing their frames).
     """
 
     def __init__(self, motion: str = "frvo", **params: Unpack[TrackerKwargs]) -> None:

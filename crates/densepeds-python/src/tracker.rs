@@ -12,7 +12,7 @@ use numpy::{PyArray1, PyArray2, PyReadonlyArrayDyn, PyUntypedArray};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyTuple};
 
-use crate::errors::{input_error, parameter_error, track_error};
+use crate::errors::{busy_error, input_error, parameter_error, track_error};
 
 /// A float array of either precision, borrowed from Python.
 enum FloatArray<'py> {
@@ -178,7 +178,7 @@ impl PyTracker {
     /// Returns (ids int64 [M], boxes float64 [M, 4], scores float32 [M], det_index int64 [M]).
     #[pyo3(signature = (boxes, scores, embeddings = None))]
     fn update<'py>(
-        &mut self,
+        slf: &Bound<'py, Self>,
         py: Python<'py>,
         boxes: &Bound<'py, PyAny>,
         scores: &Bound<'py, PyAny>,
@@ -211,7 +211,8 @@ impl PyTracker {
         let box_data = boxes.to_f64();
         let score_data = scores.to_f64();
         let emb_data = emb.as_ref().map(|e| e.to_f32());
-        let tracker = &mut self.inner;
+        let mut this = slf.try_borrow_mut().map_err(|_| busy_error())?;
+        let tracker = &mut this.inner;
         let out = py
             .detach(|| {
                 let e = emb_data.as_deref().map(|data| Embeddings { data, dim });
@@ -236,14 +237,20 @@ impl PyTracker {
     }
 
     /// Forgets all tracks; ids restart at 1.
-    fn reset(&mut self) {
-        self.inner.reset();
+    fn reset(slf: &Bound<'_, Self>) -> PyResult<()> {
+        slf.try_borrow_mut()
+            .map_err(|_| busy_error())?
+            .inner
+            .reset();
+        Ok(())
     }
 
     /// Every parameter (including `motion`) with its current value.
     #[getter]
-    fn params<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let p = self.inner.params();
+    fn params<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
+        let py = slf.py();
+        let this = slf.try_borrow().map_err(|_| busy_error())?;
+        let p = this.inner.params();
         let d = PyDict::new(py);
         for s in assoc::PARAMS {
             d.set_item(
@@ -256,24 +263,29 @@ impl PyTracker {
 
     /// Frames processed since creation or the last reset.
     #[getter]
-    fn frame_count(&self) -> u64 {
-        self.inner.frame_count()
+    fn frame_count(slf: &Bound<'_, Self>) -> PyResult<u64> {
+        Ok(slf
+            .try_borrow()
+            .map_err(|_| busy_error())?
+            .inner
+            .frame_count())
     }
 
-    fn __repr__(&self) -> String {
-        format!(
+    fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
+        let this = slf.try_borrow().map_err(|_| busy_error())?;
+        Ok(format!(
             "Tracker(motion={:?}, frames={}, tracks={})",
-            assoc::params::motion_name(self.inner.params().motion),
-            self.inner.frame_count(),
-            self.inner.num_tracks()
-        )
+            assoc::params::motion_name(this.inner.params().motion),
+            this.inner.frame_count(),
+            this.inner.num_tracks()
+        ))
     }
 }
 
 type IndexPair<'py> = (Bound<'py, PyArray1<i64>>, Bound<'py, PyArray1<i64>>);
 
 /// Like `scipy.optimize.linear_sum_assignment`: (row_ind, col_ind) of a minimum-cost assignment
-/// of min(N, M) pairs; `inf` entries are forbidden. ValueError when infeasible or NaN.
+/// of min(N, M) pairs; `inf` entries are forbidden. InputError when infeasible or NaN.
 #[pyfunction]
 fn linear_sum_assignment<'py>(
     py: Python<'py>,
