@@ -226,7 +226,8 @@ def _summary(name: str, frames: int, n_ids: int, out: Path, pipe: Any, video: Pa
     t = pipe.times
     extra = f" and {video}" if video else ""
     return (
-        f"{name}: {frames} frames, {n_ids} tracks -> {out}{extra}; {t.fps:.1f} fps "
+        f"{name}: {frames} frames, {n_ids} tracks (preset {pipe.preset.name}) -> {out}{extra}; "
+        f"{t.fps:.1f} fps "
         f"({t.breakdown()})"
     )
 
