@@ -93,3 +93,9 @@ def test_run_says_which_preset_it_used(capsys: pytest.CaptureFixture[str], tmp_p
         argv = ["run", str(seq), "--frames", "1:5", "--out", str(out), "-q", *extra]
         assert main(argv) == 0
         assert f"(preset {name})" in capsys.readouterr().out
+
+
+def test_motion_as_a_param_points_to_its_option(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exit_:
+        main(["run", "--param", "motion=cv"])
+    assert exit_.value.code == 2 and "--motion" in capsys.readouterr().err

@@ -34,6 +34,8 @@ def _tracker_param(text: str) -> tuple[str, Any]:
     key, sep, raw = text.partition("=")
     if not sep or not key.isidentifier():
         raise argparse.ArgumentTypeError(f"{text!r}: expected KEY=VALUE")
+    if key == "motion":
+        raise argparse.ArgumentTypeError(f"{text!r}: the motion model is set with --motion")
     value: Any = raw
     low = raw.lower()
     if low in ("true", "false"):
