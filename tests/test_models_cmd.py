@@ -220,3 +220,19 @@ def test_run_without_models_names_the_command(
     rc, _, err = _run(capsys, "run", str(video), "--frames", "1:2")
     assert rc == 2 and len(err.strip().splitlines()) == 1, err
     assert f"densepeds models install PATH/TO/{YOLO.file}" in err and str(cache) in err
+
+
+def test_unwritable_destination_is_one_line(
+    cache: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    blocker = tmp_path / "file"
+    blocker.write_bytes(b"x")  # a file where the folder would go: mkdir fails for anyone
+    rc, _, err = _run(
+        capsys,
+        "models",
+        "install",
+        str(shared_path("models", OSNET.file)),
+        "--dir",
+        str(blocker / "models"),
+    )
+    assert rc == 2 and len(err.strip().splitlines()) == 1 and "cannot create" in err, err

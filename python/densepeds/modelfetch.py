@@ -113,7 +113,7 @@ def fetch(
         except ModelError:
             pass  # replaced below
     url = model_url(info, base_url)
-    dest.mkdir(parents=True, exist_ok=True)
+    _make_dir(dest)
     part = target.with_name(target.name + ".part")
     have = part.stat().st_size if part.is_file() else 0
     if info.size is not None and have > info.size:
@@ -147,6 +147,8 @@ def _download(url: str, part: Path, have: int, info: ModelInfo, quiet: bool) -> 
         if have and response.status != 206:
             have = 0  # the server sent the whole file: start again
         mode = "ab" if have else "wb"
+        if not os.access(part.parent, os.W_OK):
+            raise ModelError(f"cannot write into the model folder {part.parent}")
         length = response.headers.get("Content-Length")
         total = have + int(length) if length is not None else info.size
         bar = _progress(total, have, info.file, quiet)
@@ -206,10 +208,21 @@ def install(
     else:
         raise ModelError(f"{src}: no such file or folder")
     installed = []
+    _make_dir(dest)
     for path, info in pairs:
         _check(path, info, str(path))
-        installed.append(_copy_into(path, dest / info.file))
+        try:
+            installed.append(_copy_into(path, dest / info.file))
+        except OSError as err:
+            raise ModelError(f"cannot install {path} into {dest}: {err.strerror or err}") from err
     return installed
+
+
+def _make_dir(dest: Path) -> None:
+    try:
+        dest.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise ModelError(f"cannot create the model folder {dest}: {err.strerror or err}") from err
 
 
 def _by_digest(path: Path) -> ModelInfo | None:
