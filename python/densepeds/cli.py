@@ -68,6 +68,7 @@ def _csv_choices(allowed: tuple[str, ...]) -> Any:
 
 def build_parser() -> argparse.ArgumentParser:
     from densepeds import __version__
+    from densepeds.evaluate import INSTALL_HINT
 
     parser = _Parser(
         prog="densepeds",
@@ -143,7 +144,7 @@ def build_parser() -> argparse.ArgumentParser:
         "eval",
         help="HOTA, MOTA, IDF1, ... of tracks against ground truth",
         description="Score MOTChallenge tracks against ground truth with TrackEval (HOTA, "
-        "CLEAR MOT, IDF1). Needs the eval extra: pip install 'densepeds[eval]'.",
+        f"CLEAR MOT, IDF1). Needs TrackEval: {INSTALL_HINT}",
     )
     ev.add_argument(
         "--gt",
