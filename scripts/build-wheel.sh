@@ -10,7 +10,7 @@ echo "build-wheel: installing the build tools (maturin, ziglang)" >&2
 python -m pip install -q "maturin>=1.7,<2" "ziglang>=0.11"
 mkdir -p "$OUT"
 rm -f "$OUT"/densepeds-*.whl
-echo "build-wheel: compiling the Rust extension and packing the wheel (about 1-3 minutes)" >&2
+echo "build-wheel: compiling the Rust extension and packing the wheel (a few minutes)" >&2
 maturin build --release --compatibility manylinux_2_17 --zig --auditwheel check -o "$OUT" >&2
 WHEEL=$(ls "$OUT"/densepeds-*-cp310-abi3-manylinux*_x86_64.whl "$OUT"/densepeds-*-abi3-manylinux*.whl 2>/dev/null | head -1)
 if [ -z "$WHEEL" ]; then
