@@ -390,3 +390,33 @@ def test_eval_without_trackeval_says_what_to_install(
     _one_line_error(
         rc, err, "pip install 'densepeds[eval]' && pip install --no-deps 'trackeval>=1.3'"
     )
+
+
+def test_eval_benchmark_option(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """The rules can be named on the command line, and the error for class-less gt says how."""
+    seq = shared_path("data", "TUD-Stadtmitte")
+    tracks = tmp_path / "t.txt"
+    gt_rows = (seq / "gt" / "gt.txt").read_text().splitlines()[:50]
+    tracks.write_text("".join(",".join(r.split(",")[:6]) + ",1,-1,-1,-1\n" for r in gt_rows))
+    rc, _, err = _run(
+        capsys, "eval", "--gt", str(seq), "--tracks", str(tracks), "--benchmark", "MOT17"
+    )
+    _one_line_error(rc, err, "--benchmark MOT15")
+    runs = {}
+    for bench in ("auto", "MOT15"):
+        rc, out, _ = _run(
+            capsys,
+            "eval",
+            "--gt",
+            str(seq),
+            "--tracks",
+            str(tracks),
+            "--benchmark",
+            bench,
+            "--format",
+            "json",
+        )
+        assert rc == 0
+        runs[bench] = json.loads(out)
+    assert runs["auto"] == runs["MOT15"] and runs["MOT15"]["benchmarks"][seq.name] == "MOT15"
+    assert runs["MOT15"]["combined"]["FP"] == 0  # the tracks are gt boxes

@@ -68,7 +68,7 @@ def _csv_choices(allowed: tuple[str, ...]) -> Any:
 
 def build_parser() -> argparse.ArgumentParser:
     from densepeds import __version__
-    from densepeds.evaluate import INSTALL_HINT
+    from densepeds.evaluate import BENCHMARKS, INSTALL_HINT
 
     parser = _Parser(
         prog="densepeds",
@@ -167,6 +167,13 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="A:B",
         help="score only frames A..B (1-based, inclusive) of the ground truth and the tracks, "
         "e.g. the range given to `run --frames`",
+    )
+    ev.add_argument(
+        "--benchmark",
+        choices=("auto", *BENCHMARKS),
+        default="auto",
+        help="scoring rules: MOT15 (no classes) or MOT16/17/20 (class 1 scored, distractors "
+        "ignored); default auto, from the gt columns and the sequence name",
     )
     ev.add_argument("--format", choices=FORMATS, default="md", help=FORMAT_HELP)
 
@@ -426,7 +433,7 @@ def _run_scene(args: argparse.Namespace) -> int:
 def _cmd_eval(args: argparse.Namespace) -> int:
     from densepeds.evaluate import evaluate, format_results
 
-    result = evaluate(list(args.gt), args.tracks, frames=args.frames)
+    result = evaluate(list(args.gt), args.tracks, benchmark=args.benchmark, frames=args.frames)
     for note in result.warnings:
         sys.stderr.write(f"densepeds eval: warning: {note}\n")
     print(format_results(result, args.format))

@@ -168,7 +168,8 @@ def _load_sequence(
     if bench != "MOT15" and len(gt) and not _has_mot17_classes(gt):
         raise InputError(
             f"{gt_file}: {bench} rules need class and visibility columns (8th: class id 1-13, "
-            "9th: visibility 0-1); use benchmark='MOT15' for gt without classes"
+            "9th: visibility 0-1); for gt without classes use eval --benchmark MOT15 "
+            "(benchmark='MOT15' in Python)"
         )
     if frames is not None:
         rng = frames.clip(length)
