@@ -298,12 +298,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--cnn-param", action="append", default=[], help="KEY=VALUE, video cells")
     ap.add_argument("--json", type=Path, help="also write the per-cell metrics here")
     ap.add_argument("--write", action="store_true", help="regenerate every table (see module doc)")
+    ap.add_argument("--results", type=Path, help="with --write: write here instead (a quick look)")
     ap.add_argument("--quiet", "-q", action="store_true")
     args = ap.parse_args(argv)
     if args.write:
         import accuracy_tables
 
-        return accuracy_tables.write_all(args.cache, quiet=args.quiet)
+        return accuracy_tables.write_all(
+            args.cache,
+            quiet=args.quiet,
+            out=args.results or accuracy_tables.RESULTS,
+            cells=select_cells(args.cells),
+        )
     config = Config(
         motion=args.motion,
         features=args.features,
@@ -322,8 +328,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(f"{config.label()}: mean HOTA {mean_metric(result):.2f} over {len(result)} cells")
     print(cell_table(result))
     print(
-        f"(loaded in {time.perf_counter() - t0 - (time.perf_counter() - t1):.1f} s, "
-        f"tracked and scored in {time.perf_counter() - t1:.1f} s)",
+        f"(loaded in {t1 - t0:.1f} s, tracked and scored in {time.perf_counter() - t1:.1f} s)",
         file=sys.stderr,
     )
     if args.json:
