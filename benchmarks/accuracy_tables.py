@@ -8,6 +8,7 @@
   against tracker, and the false positives that coasting adds;
 - ``accuracy-claims.md``: the method's claims (FRVO vs RVO/SF/CV; segmented vs bbox /
   masked_pool) over the grid with a sign test and a bootstrap over cells;
+- ``accuracy-scene.md``: the masking ablation on the built-in scene, exact and noisy masks;
 - ``realvideo.md``: ``realvideo.py``'s full-pipeline ablation on the two real videos.
 
 Figures are computed on every run; nothing here holds a result.
@@ -422,6 +423,72 @@ def claims_table(motions: Mapping[str, Results], features: Mapping[str, Results]
     return lines
 
 
+# --- the built-in scene ---
+
+SCENE_MASKS: dict[str, dict[str, int]] = {
+    "exact": {},
+    "dilated 3 px": {"mask_dilate": 3},
+    "eroded 2 px": {"mask_dilate": -2},
+    "shifted up to 4 px": {"mask_shift": 4},
+    "dilated 3 px + shifted 4 px": {"mask_dilate": 3, "mask_shift": 4},
+}
+SCENE_KINDS = ("segmented", "masked_pool", "bbox", "none")
+
+
+def scene_ablation(seed: int = 0, frames: int = 150) -> dict[str, dict[str, dict[str, float]]]:
+    """Metrics per mask setting and features (FRVO, the tracker's defaults) on the scene."""
+    import tempfile
+
+    from densepeds.evaluate import evaluate
+    from densepeds.motio import write_tracks
+    from densepeds.pipeline import Pipeline, track_rows
+    from densepeds.scene import make_scene
+
+    out: dict[str, dict[str, dict[str, float]]] = {}
+    with tempfile.TemporaryDirectory(prefix="densepeds-scene-") as tmp:
+        for label, noise in SCENE_MASKS.items():
+            scene = make_scene(seed=seed, frames=frames, **noise)
+            seq = scene.write(Path(tmp) / label.replace(" ", "_"), images=False)
+            emb = scene.embedder()
+            images = dict(scene.frames())
+            out[label] = {}
+            for kind in SCENE_KINDS:
+                pipe = Pipeline(None, motion="frvo", features=kind)
+                rows: list[tuple[float, ...]] = []
+                for k in range(1, scene.length + 1):
+                    d = scene.detections.get(k)
+                    if d is None:
+                        continue
+                    image = images[k]
+                    assert image is not None
+                    e = None if kind == "none" else emb.embed(image, d, kind)
+                    rows += track_rows(k, pipe.step(None, d, embeddings=e))
+                path = Path(tmp) / f"{label}-{kind}.txt"
+                write_tracks(path, rows)
+                out[label][kind] = evaluate([seq], path).combined
+            _log(f"scene, {label} masks: done")
+    return out
+
+
+def scene_table(res: Mapping[str, Mapping[str, Mapping[str, float]]]) -> list[str]:
+    lines = [
+        "The built-in scene (`densepeds.scene.make_scene(seed=0, frames=150)`), its stand-in "
+        "detector's boxes and masks, its colour-histogram embedder, FRVO with the tracker's "
+        "defaults. With exact masks a mask holds only the person's own visible pixels, so "
+        "masking beats the plain box by construction; the noisy rows make the masks grow, "
+        "shrink or slide (`SceneConfig.mask_dilate`, `mask_shift`) as a real segmenter's do. "
+        "The histogram embedder is not OSNet: these rows test the pipeline's plumbing of the "
+        "masking, not the method's claim (that is `accuracy-claims.md`).",
+        "",
+        "| masks | " + " | ".join(f"{k} HOTA / IDF1" for k in SCENE_KINDS) + " |",
+        "|---|" + "---:|" * len(SCENE_KINDS),
+    ]
+    for label, by_kind in res.items():
+        vals = [f"{by_kind[k]['HOTA']:.1f} / {by_kind[k]['IDF1']:.1f}" for k in SCENE_KINDS]
+        lines.append(f"| {label} | " + " | ".join(vals) + " |")
+    return lines
+
+
 # --- everything ---
 
 
@@ -529,6 +596,12 @@ def write_all(
         + claims_table(motions, features),
     )
 
+    _write(
+        out,
+        "accuracy-scene.md",
+        ["# The masking ablation on the built-in scene, exact and noisy masks", ""]
+        + scene_table(scene_ablation()),
+    )
     if out == RESULTS and len(cells) == len(grid.CELLS):
         realvideo.main(["--cache", str(cache), "--quiet", "--write", str(out / "realvideo.md")])
     _log(f"all tables in {time.perf_counter() - t0:.0f} s")
