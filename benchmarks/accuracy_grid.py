@@ -168,7 +168,7 @@ def load_grid(
 
 
 def _pipeline(data: CellData, config: Config, tracker: Any = None) -> Any:
-    from densepeds.pipeline import Pipeline
+    from densepeds.pipeline import DETECTION_OPTIONS, Pipeline
 
     detector = "yoloseg" if data.cell.full_pipeline else None
     if tracker is not None:
@@ -279,9 +279,6 @@ def parse_params(items: Sequence[str]) -> dict[str, Any]:
             sys.exit(f"a parameter is KEY=VALUE, got {item!r}")
         out[key] = parse_value(value)
     return out
-
-
-DETECTION_OPTIONS = ("min_score", "min_height", "nms_iou", "nms_containment", "nms_mask_overlap")
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -201,6 +201,28 @@ def test_crossing_scene_hides_a_walker_for_a_few_frames() -> None:
         assert set(scene.gt_rows[:, 1].astype(int)) == {1, 2}
 
 
+def test_matched_ids_follow_the_people_a_tracker_reports(scene: Scene) -> None:
+    gt = scene.gt_rows
+    boxes = np.column_stack([gt[:, 2:4], gt[:, 2:4] + gt[:, 4:6]])
+    rows = np.column_stack([gt[:, 0], gt[:, 1] + 100, boxes, np.ones(len(gt))])
+    # Person 5's track swaps to id 999 from frame 30; frame 10 is not reported at all.
+    rows[(gt[:, 1] == 5) & (gt[:, 0] >= 30), 1] = 999
+    rows = rows[rows[:, 0] != 10]
+    ids = scene.matched_ids(rows)
+    vis = scene.visibility()
+    for k in (5, 20, 40):
+        seen = ~np.isnan(vis[k - 1])
+        people = np.flatnonzero(seen) + 1
+        want = np.where(people == 5, 999 if k >= 30 else 105, people + 100)
+        np.testing.assert_array_equal(ids[k - 1, seen], want)
+        assert (ids[k - 1, ~seen] == 0).all()
+    assert (ids[9] == 0).all()
+    # Boxes off by more than the IoU floor match nobody.
+    moved = rows.copy()
+    moved[:, 2:6] += np.tile(moved[:, 4:6] - moved[:, 2:4], 2)  # by its own width and height
+    assert (scene.matched_ids(moved) == 0).all()
+
+
 def test_written_sequence_reads_back_and_perfect_tracks_score_100(
     scene: Scene, tmp_path: Path
 ) -> None:

@@ -17,7 +17,8 @@ person's exactly visible pixels: a real segmenter's are not, so the masking abla
 default scene favours masking by construction. ``SceneConfig.mask_dilate`` and ``mask_shift``
 make the masks grow, shrink or slide off the person. ``make_crossing_scene`` is a small scene in
 which walkers hide each other completely for a few frames; ``Scene.visibility`` and
-``Scene.occlusions`` say who is hidden when, for tests of occlusion handling.
+``Scene.occlusions`` say who is hidden when, and ``Scene.matched_ids`` which track id covered
+each person in each frame, for tests of occlusion handling.
 """
 
 from densepeds.scene.config import SceneConfig
