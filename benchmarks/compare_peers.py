@@ -30,18 +30,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import peers  # noqa: E402
+from accuracy_grid import DET_SEQUENCES as DEV_SEQUENCES  # noqa: E402
 from densepeds import motio  # noqa: E402
 from densepeds.evaluate import evaluate  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
-DEV_SEQUENCES = (
-    "MOT17-02-FRCNN",
-    "TUD-Stadtmitte",
-    "ETH-Sunnyday",
-    "KITTI-17",
-    "Venice-2",
-    "PETS09-S2L1-dev",
-)
 SHOWN = ("HOTA", "IDF1", "MOTA", "IDSW")
 
 
