@@ -296,6 +296,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--json", type=Path, help="also write the per-cell metrics here")
     ap.add_argument("--write", action="store_true", help="regenerate every table (see module doc)")
     ap.add_argument("--results", type=Path, help="with --write: write here instead (a quick look)")
+    ap.add_argument(
+        "--tables",
+        nargs="+",
+        help="with --write: only these (peers loo visibility claims scene realvideo)",
+    )
     ap.add_argument("--quiet", "-q", action="store_true")
     args = ap.parse_args(argv)
     if args.write:
@@ -306,6 +311,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             quiet=args.quiet,
             out=args.results or accuracy_tables.RESULTS,
             cells=select_cells(args.cells),
+            tables=args.tables or accuracy_tables.TABLES,
         )
     config = Config(
         motion=args.motion,
