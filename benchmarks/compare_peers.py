@@ -226,8 +226,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--trackers",
         nargs="+",
-        default=[*peers.PEERS, "densepeds"],
-        help=f"any of {', '.join(peers.PEERS)}, densepeds (= each --motion)",
+        default=[*(p for p in peers.PEERS if p not in peers.NEEDS_EMBEDDINGS), "densepeds"],
+        help=f"any of {', '.join(peers.PEERS)} (except {', '.join(peers.NEEDS_EMBEDDINGS)}: "
+        "these need embeddings), densepeds (= each --motion)",
     )
     ap.add_argument("--motion", nargs="+", default=list(peers.MOTIONS), choices=peers.MOTIONS)
     ap.add_argument("--param", action="append", default=[], help="key=value for our Tracker")
