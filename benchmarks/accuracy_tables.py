@@ -49,6 +49,12 @@ CANDIDATES: dict[str, dict[str, Any]] = {
     "occlusion_coverage 0.3": {"occlusion_coverage": 0.3},
     "occlusion_coverage 0.7": {"occlusion_coverage": 0.7},
 }
+# What the package defaults were chosen on: update this where a default is tuned again.
+TUNED_ON = {
+    "det": "the six `/det` cells together, motion only",
+    "cnn": "the two `/float` videos together",
+}
+UNTUNED = "every `/frcnn` and `/int8` cell"
 MOTION_ROWS = ("frvo", "rvo", "sf", "cv")
 FEATURE_ROWS = ("segmented", "bbox", "masked_pool", "none")
 VISIBILITY_BINS = ((0.0, 0.25), (0.25, 0.5), (0.5, 0.75), (0.75, 1.01))
@@ -94,12 +100,11 @@ def _header(title: str, what: str) -> list[str]:
         "every detection, cached. Every cell is tracked through `densepeds.Pipeline.step` and "
         "scored by `densepeds.evaluate` (trackeval, MOTChallenge rules).",
         "",
-        "Package defaults: on det files the tracker's own defaults, chosen motion only on the "
-        "six `det.txt` sequences together (`results/tracker.md`): "
-        f"`{own}`. On the videos the CNN presets, chosen on the two `/float` videos "
-        f"together (`results/realvideo.md`): detections `{CNN_DETECTION_DEFAULTS}`, tracker "
-        f"`{CNN_TRACKER_DEFAULTS}`. The `/frcnn` and `/int8` cells were not used to choose "
-        "any default.",
+        "Package defaults: on det files the tracker's own defaults, chosen on "
+        f"{TUNED_ON['det']} (`results/tracker.md`): `{own}`. On the videos the CNN presets, "
+        f"chosen on {TUNED_ON['cnn']} (`results/realvideo.md`): detections "
+        f"`{CNN_DETECTION_DEFAULTS}`, tracker `{CNN_TRACKER_DEFAULTS}`. Cells no default was "
+        f"chosen on: {UNTUNED}.",
         "",
         f"Packages: {vers}; Python {platform.python_version()}.",
         "",
