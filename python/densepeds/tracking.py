@@ -9,7 +9,8 @@ and ``cv`` for the method's ablation), then matched in stages, each solved optim
 Parameters (keyword arguments). Defaults were tuned motion-only on the six dev sequences together,
 never per sequence (benchmarks/results/tracker.md). The method's pure form (two optimal stages on
 every detection, nothing else) is ``det_threshold=-inf, new_track_threshold=-inf,
-second_pass=False, recovery=False, size_smoothing=0, output_lost=0`` (``PURE_PARAMS``).
+second_pass=False, recovery=False, size_smoothing=0, output_lost=0, occluded_output=0``
+(``PURE_PARAMS``).
 
 ==========================  =======  ===========================================================
 name                        default  meaning
@@ -38,6 +39,13 @@ ellipse_w_scale             0.15     FRVO ellipse w = scale * box width (kept sm
                                      in a front view is occlusion, not collision)
 output_lost                 5        also report tracks (at the motion model's prediction) this
                                      many frames after their last match
+occluded_output             10       an unmatched track whose predicted box is covered by
+                                     detections nearer the camera (lower foot point) is
+                                     occluded: reported at its prediction up to this many frames
+                                     after its last match while covered; one mostly outside the
+                                     image (``set_image_size``) has left and is deleted (0: no
+                                     scene reasoning)
+occlusion_coverage          0.5      covered fraction of the predicted box that means occluded
 neighbor_radius, max_neighbors, time_horizon, max_speed, polygon_sides: the motion model's.
 threads                     0        threads for the motion model's step (at most 1024): 0 =
                                      every core, used from 300 agent-neighbour pairs up; 1 =
@@ -70,6 +78,7 @@ PURE_PARAMS: dict[str, float | int | bool] = {
     "recovery": False,
     "size_smoothing": 0.0,
     "output_lost": 0,
+    "occluded_output": 0,
 }
 
 
@@ -126,6 +135,15 @@ class Tracker:
         except ValueError as err:
             raise InputError(str(err)) from None
         return Tracks(ids, out_boxes, out_scores, det_index)
+
+    def set_image_size(self, width: float, height: float) -> None:
+        """The image size in pixels: an unmatched track whose predicted box lies mostly outside
+        it has left and is deleted. Without it no track is judged to have left (they live
+        ``max_age`` frames). Kept across ``reset``."""
+        try:
+            self._core.set_image_size(float(width), float(height))
+        except ValueError as err:
+            raise InputError(str(err)) from None
 
     def reset(self) -> None:
         """Forgets all tracks; ids restart at 1."""

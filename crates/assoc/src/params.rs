@@ -72,6 +72,16 @@ pub struct TrackerParams {
     /// caps it. 5: bridges short misses of the detector with the
     /// motion model's prediction (more recall and HOTA, some more false positives).
     pub output_lost: u32,
+    /// Scene reasoning for unmatched confirmed tracks (0 switches it off): a track whose
+    /// predicted box is covered by detections nearer the camera (lower foot point) is occluded
+    /// and is reported at its prediction for up to this many frames after its last match, while
+    /// it stays covered; a track whose predicted box lies mostly outside the image (when the
+    /// tracker knows its size: `Tracker::set_image_size`) is deleted.
+    /// Others follow `output_lost`. 10.
+    pub occluded_output: u32,
+    /// Fraction of an unmatched track's predicted box that nearer detections must cover for it
+    /// to count as occluded. 0.5.
+    pub occlusion_coverage: f64,
 }
 
 impl Default for TrackerParams {
@@ -99,6 +109,8 @@ impl Default for TrackerParams {
             ellipse_l_scale: 0.15,
             ellipse_w_scale: 0.15,
             output_lost: 5,
+            occluded_output: 10,
+            occlusion_coverage: 0.5,
         }
     }
 }
@@ -141,6 +153,8 @@ pub const PARAM_NAMES: &[&str] = &[
     "ellipse_l_scale",
     "ellipse_w_scale",
     "output_lost",
+    "occluded_output",
+    "occlusion_coverage",
     "neighbor_radius",
     "max_neighbors",
     "time_horizon",
@@ -166,7 +180,7 @@ impl TrackerParams {
     /// optimally; no score thresholds, no second pass, no recovery, no size smoothing, only
     /// matched tracks reported). Equivalent to the keyword arguments
     /// `det_threshold=-inf, new_track_threshold=-inf, second_pass=False, recovery=False,
-    /// size_smoothing=0, output_lost=0`. Other fields keep their defaults.
+    /// size_smoothing=0, output_lost=0, occluded_output=0`. Other fields keep their defaults.
     pub fn pure() -> Self {
         Self {
             det_threshold: f64::NEG_INFINITY,
@@ -175,6 +189,7 @@ impl TrackerParams {
             recovery: false,
             size_smoothing: 0.0,
             output_lost: 0,
+            occluded_output: 0,
             ..Self::default()
         }
     }
@@ -183,7 +198,9 @@ impl TrackerParams {
     pub fn kind_of(name: &str) -> Option<ParamKind> {
         Some(match name {
             "n_init" | "max_age" | "gallery_size" | "pref_window" | "output_lost"
-            | "low_max_age" | "max_neighbors" | "polygon_sides" | "threads" => ParamKind::Int,
+            | "occluded_output" | "low_max_age" | "max_neighbors" | "polygon_sides" | "threads" => {
+                ParamKind::Int
+            }
             "second_pass" | "recovery" => ParamKind::Bool,
             n if PARAM_NAMES.contains(&n) => ParamKind::Float,
             _ => return None,
@@ -233,6 +250,8 @@ impl TrackerParams {
             "ellipse_l_scale" => p.ellipse_l_scale = f,
             "ellipse_w_scale" => p.ellipse_w_scale = f,
             "output_lost" => p.output_lost = to_u32(name, i)?,
+            "occluded_output" => p.occluded_output = to_u32(name, i)?,
+            "occlusion_coverage" => p.occlusion_coverage = f,
             "neighbor_radius" => p.motion_params.neighbor_radius = f,
             "max_neighbors" => p.motion_params.max_neighbors = to_usize(name, i)?,
             "time_horizon" => p.motion_params.time_horizon = f,
@@ -269,6 +288,8 @@ impl TrackerParams {
             "ellipse_l_scale" => Float(p.ellipse_l_scale),
             "ellipse_w_scale" => Float(p.ellipse_w_scale),
             "output_lost" => Int(p.output_lost.into()),
+            "occluded_output" => Int(p.occluded_output.into()),
+            "occlusion_coverage" => Float(p.occlusion_coverage),
             "neighbor_radius" => Float(p.motion_params.neighbor_radius),
             "max_neighbors" => Int(p.motion_params.max_neighbors as i64),
             "time_horizon" => Float(p.motion_params.time_horizon),
@@ -323,6 +344,7 @@ impl TrackerParams {
         unit("low_iou_threshold", p.low_iou_threshold)?;
         unit("recovery_iou_threshold", p.recovery_iou_threshold)?;
         unit("velocity_smoothing", p.velocity_smoothing)?;
+        unit("occlusion_coverage", p.occlusion_coverage)?;
         if !(0.0..1.0).contains(&p.size_smoothing) {
             return Err(bad(
                 "size_smoothing",

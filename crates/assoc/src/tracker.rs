@@ -8,10 +8,13 @@
 //! 3. ByteTrack-style second pass: low-score detections can extend (never start) tracks;
 //! 4. OC-SORT-style recovery of lost tracks by their last observed box;
 //!
-//! then update, age and delete tracks and start new ones.
+//! then update, age and delete tracks and start new ones. An unmatched confirmed track is
+//! classified from the scene ([`crate::occlusion`]): occluded ones keep being predicted among
+//! their neighbours and reported, those that left the image are deleted.
 
 use crate::cost::{centre, iou, normalise, validate_boxes, BBox};
 use crate::lap::{Edge, SparseMatcher};
+use crate::occlusion::{classify, Unmatched};
 use crate::params::TrackerParams;
 use crate::track::Track;
 use crate::TrackError;
@@ -45,6 +48,8 @@ pub struct Tracker {
     frame: u64,
     emb_dim: Option<usize>,
     matcher: SparseMatcher,
+    /// Image size `[width, height]` when the caller gave it.
+    image_size: Option<[f64; 2]>,
 }
 
 impl std::fmt::Debug for Tracker {
@@ -100,6 +105,7 @@ impl Tracker {
             frame: 0,
             emb_dim: None,
             matcher: SparseMatcher::default(),
+            image_size: None,
         })
     }
 
@@ -114,6 +120,19 @@ impl Tracker {
         self.frame = 0;
         self.emb_dim = None;
         self.model = make_model(self.params.motion, self.params.motion_params);
+    }
+
+    /// The image size `(width, height)` in pixels: with it, an unmatched track whose predicted
+    /// box lies mostly outside the image is deleted (it left); without it, no track is judged to
+    /// have left. Kept across [`Tracker::reset`].
+    pub fn set_image_size(&mut self, width: f64, height: f64) -> Result<(), TrackError> {
+        if !(width > 0.0 && height > 0.0 && width.is_finite() && height.is_finite()) {
+            return Err(TrackError::InvalidInput(format!(
+                "image size must be positive and finite, got {width} x {height}"
+            )));
+        }
+        self.image_size = Some([width, height]);
+        Ok(())
     }
 
     /// Frames processed since creation or the last reset.
@@ -326,6 +345,27 @@ impl Tracker {
             record(&pairs, &mut track_det, &mut det_track);
         }
 
+        // Unmatched confirmed tracks: occluded, left the image, or neither.
+        let mut left_image = vec![false; nt];
+        if p.occluded_output > 0 {
+            // The people seen this frame: detections matched to tracks and confident ones.
+            let scene: Vec<BBox> = (0..n)
+                .filter(|&j| det_track[j].is_some() || high(j))
+                .map(|j| dets[j])
+                .collect();
+            for (i, t) in self.tracks.iter_mut().enumerate() {
+                t.occluded = false;
+                if track_det[i].is_some() || !t.confirmed {
+                    continue;
+                }
+                match classify(&t.predicted, &scene, self.image_size, p.occlusion_coverage) {
+                    Unmatched::Occluded => t.occluded = true,
+                    Unmatched::LeftImage => left_image[i] = true,
+                    Unmatched::Uncovered => {}
+                }
+            }
+        }
+
         // Update matched tracks, coast the others, drop the dead.
         for (i, t) in self.tracks.iter_mut().enumerate() {
             match track_det[i] {
@@ -344,7 +384,7 @@ impl Tracker {
         self.tracks.retain(|t| {
             let keep = match track_det[k] {
                 Some(_) => true,
-                None => t.confirmed && t.time_since_update <= p.max_age,
+                None => !left_image[k] && t.confirmed && t.time_since_update <= p.max_age,
             };
             k += 1;
             keep
@@ -371,7 +411,12 @@ impl Tracker {
         let mut out: Vec<TrackOutput> = self
             .tracks
             .iter()
-            .filter(|t| t.confirmed && t.time_since_update <= self.params.output_lost)
+            .filter(|t| {
+                let p = &self.params;
+                t.confirmed
+                    && (t.time_since_update <= p.output_lost
+                        || (t.occluded && t.time_since_update <= p.occluded_output))
+            })
             .map(|t| TrackOutput {
                 id: t.id,
                 bbox: t.bbox,
