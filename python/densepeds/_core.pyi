@@ -83,6 +83,7 @@ class TrackerKwargs(TypedDict, total=False):
     output_lost: int
     occluded_output: int
     occlusion_coverage: float
+    relative_scores: bool
     neighbor_radius: float
     max_neighbors: int
     time_horizon: float
@@ -125,6 +126,7 @@ class Tracker:
         output_lost: int = 5,
         occluded_output: int = 10,
         occlusion_coverage: float = 0.5,
+        relative_scores: bool = True,
         neighbor_radius: float = 150.0,
         max_neighbors: int = 10,
         time_horizon: float = 5.0,
