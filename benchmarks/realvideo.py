@@ -33,6 +33,8 @@ import numpy.typing as npt
 
 REPO = Path(__file__).resolve().parent.parent
 SHARED = Path(os.environ.get("DENSEPEDS_SHARED", REPO.parent / "shared"))
+# The shared models by bare name (an explicit DENSEPEDS_MODEL_DIR from the environment wins).
+os.environ.setdefault("DENSEPEDS_MODEL_DIR", str(SHARED / "models"))
 VIDEOS = (("MOT20-01-dev", "1:214"), ("PETS09-S2L1-dev", "1:397"))
 ABLATION = (
     ("frvo", "default"),

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
+from pathlib import Path
 
 import pytest
 from densepeds.cli import main
@@ -11,6 +12,8 @@ from densepeds.errors import ParameterError
 from densepeds.pipeline import Pipeline
 from densepeds.presets import DEFAULT_PRESET, PRESETS, get_preset
 from densepeds.tracking import Tracker
+
+from tests.conftest import shared_path
 
 
 @pytest.mark.parametrize("name", list(PRESETS))
@@ -81,3 +84,18 @@ def test_run_with_an_unknown_preset_is_one_line(capsys: pytest.CaptureFixture[st
     assert exit_.value.code == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--preset" in err
+
+
+def test_run_says_which_preset_it_used(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    seq = shared_path("data", "TUD-Stadtmitte")
+    out = tmp_path / "t.txt"
+    for extra, name in (([], DEFAULT_PRESET), (["--preset", "yoloseg"], "yoloseg")):
+        argv = ["run", str(seq), "--frames", "1:5", "--out", str(out), "-q", *extra]
+        assert main(argv) == 0
+        assert f"(preset {name})" in capsys.readouterr().out
+
+
+def test_motion_as_a_param_points_to_its_option(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exit_:
+        main(["run", "--param", "motion=cv"])
+    assert exit_.value.code == 2 and "--motion" in capsys.readouterr().err

@@ -1,4 +1,4 @@
-//! Tracker parameters, each declared once in the [`tracker_params!`] table below: name, type,
+//! Tracker parameters, each declared once in the `tracker_params!` table below: name, type,
 //! default, allowed range and a one-line doc. The struct, its `Default`, the list [`PARAMS`],
 //! access by name ([`TrackerParams::set`], [`TrackerParams::get`]) and validation are all made
 //! from that table, and the Python binding exports it (`densepeds._core.PARAMS`), from which the

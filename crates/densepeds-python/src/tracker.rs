@@ -118,6 +118,20 @@ fn value_object<'py>(py: Python<'py>, v: ParamValue) -> PyResult<Bound<'py, PyAn
     })
 }
 
+/// The keyword arguments that give `TrackerParams::pure()`: those where it differs from the
+/// defaults.
+fn pure_params(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+    let (pure, defaults) = (TrackerParams::pure(), TrackerParams::default());
+    let d = PyDict::new(py);
+    for s in assoc::PARAMS {
+        let v = pure.get(s.name).expect("every row has a field");
+        if Some(&v) != defaults.get(s.name).as_ref() {
+            d.set_item(s.name, value_object(py, v)?)?;
+        }
+    }
+    Ok(d)
+}
+
 /// The parameter table as Python data: one dict per parameter with its name, Python type
 /// name, default value, range (as text) and one-line doc, in the table's order.
 fn param_table(py: Python<'_>) -> PyResult<Bound<'_, PyTuple>> {
@@ -362,6 +376,7 @@ fn cosine_distance_matrix<'py>(
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyTracker>()?;
     m.add("PARAMS", param_table(m.py())?)?;
+    m.add("PURE_PARAMS", pure_params(m.py())?)?;
     m.add_function(wrap_pyfunction!(linear_sum_assignment, m)?)?;
     m.add_function(wrap_pyfunction!(iou_matrix, m)?)?;
     m.add_function(wrap_pyfunction!(cosine_distance_matrix, m)?)?;
