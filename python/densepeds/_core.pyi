@@ -83,6 +83,9 @@ class TrackerKwargs(TypedDict, total=False):
     ellipse_l_scale: float
     ellipse_w_scale: float
     output_lost: int
+    occluded_output: int
+    occlusion_coverage: float
+    relative_scores: bool
     neighbor_radius: float
     max_neighbors: int
     time_horizon: float
@@ -123,6 +126,9 @@ class Tracker:
         ellipse_l_scale: float = 0.15,
         ellipse_w_scale: float = 0.15,
         output_lost: int = 5,
+        occluded_output: int = 10,
+        occlusion_coverage: float = 0.5,
+        relative_scores: bool = True,
         neighbor_radius: float = 150.0,
         max_neighbors: int = 10,
         time_horizon: float = 5.0,
@@ -142,6 +148,7 @@ class Tracker:
         npt.NDArray[np.float32],
         npt.NDArray[np.int64],
     ]: ...
+    def set_image_size(self, width: float, height: float) -> None: ...
     def reset(self) -> None: ...
     @property
     def params(self) -> dict[str, str | float | int | bool]: ...
