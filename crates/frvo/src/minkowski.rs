@@ -18,8 +18,8 @@ pub fn minkowski_sum(a: &Polygon, b: &Polygon) -> Polygon {
     }
     // Each polygon's k-th vertex counted from its lowest one, where edge angles start at 0.
     let (start_a, start_b) = (lowest_vertex(pa), lowest_vertex(pb));
-    let va = |k: usize| pa[(start_a + k) % n];
-    let vb = |k: usize| pb[(start_b + k) % m];
+    let va = |k: usize| pa[wrap(start_a + k, n)];
+    let vb = |k: usize| pb[wrap(start_b + k, m)];
     let (mut i, mut j) = (0, 0);
     while i < n || j < m {
         sum.push(va(i) + vb(j));
@@ -46,4 +46,13 @@ pub fn minkowski_sum(a: &Polygon, b: &Polygon) -> Polygon {
         }
     }
     sum
+}
+
+/// `i` modulo `n` for `i < 2n`.
+pub(crate) fn wrap(i: usize, n: usize) -> usize {
+    if i >= n {
+        i - n
+    } else {
+        i
+    }
 }

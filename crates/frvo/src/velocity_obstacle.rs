@@ -6,8 +6,9 @@
 //! `P`, truncated by `P / tau`. Its boundary is two legs (rays along the tangents from the
 //! origin) and the chain of `P / tau` that faces the origin; the set is convex.
 
-use crate::geometry::{cross, left_normal, right_normal, Polygon, V2};
+use crate::geometry::{cross, left_normal, right_normal, Polygon, MAX_VERTICES, V2};
 use crate::lp::Line;
+use crate::minkowski::wrap;
 
 /// One boundary piece of a convex region: `start + t * edge`, `t` in `[0, 1]` (segment) or
 /// `[0, inf)` (ray), with its unit outward normal.
@@ -33,13 +34,16 @@ pub struct Avoidance {
 pub fn avoidance(p: V2, sum: &Polygon, w: V2, tau: f64, dt: f64) -> Avoidance {
     let pts = sum.points();
     let n = pts.len();
-    let next = |i: usize| (i + 1) % n;
+    let next = |i: usize| wrap(i + 1, n);
     // Edge i (from vertex i to i + 1) faces the origin when the origin is on its outer side.
     // The facing edges of a convex polygon are one contiguous run (none when the origin is
     // inside); `first` is where it starts.
-    let faces = |i: usize| cross(pts[next(i)] - pts[i], -(p + pts[i])) < 0.0;
+    let mut faces = [false; MAX_VERTICES];
+    for i in 0..n {
+        faces[i] = cross(pts[next(i)] - pts[i], p + pts[i]) > 0.0;
+    }
     let first = if n >= 3 {
-        (0..n).find(|&i| faces(i) && !faces((i + n - 1) % n))
+        (0..n).find(|&i| faces[i] && !faces[wrap(i + n - 1, n)])
     } else {
         None
     };
@@ -49,7 +53,7 @@ pub fn avoidance(p: V2, sum: &Polygon, w: V2, tau: f64, dt: f64) -> Avoidance {
             // The cap: the facing edges of P / tau ...
             let inv_tau = 1.0 / tau;
             let mut k = first;
-            while faces(k) && feats.len() < n {
+            while faces[k] && feats.len() < n {
                 let a = p + pts[k];
                 let edge = pts[next(k)] - pts[k];
                 feats.push(Feature {
