@@ -114,14 +114,14 @@ def test_threads_give_the_same_velocities(motion: str) -> None:
 
 
 def test_concurrent_callers_share_the_threads_safely() -> None:
-    # Python threads stepping at once (the GIL is released): every-core steps share one set
-    # of helper threads, and a caller that finds it busy runs alone. Each must still get the
+    # Python threads stepping at once (the GIL is released): every-core steps share the
+    # process's thread pool (crowds from 1,100 agents spread over it). Each must still get the
     # one-thread velocities.
     from concurrent.futures import ThreadPoolExecutor
 
     rng = np.random.default_rng(5)
     crowds = []
-    for n in (60, 200, 400, 900):
+    for n in (60, 200, 1100, 2000):
         pos = rng.uniform(0.0, 25.0 * np.sqrt(n), size=(n, 2))
         vel, pref = rng.uniform(-2.0, 2.0, size=(2, n, 2))
         axes = np.column_stack([rng.uniform(10, 30, n), rng.uniform(20, 50, n)])

@@ -31,9 +31,9 @@ def step_crowd(
     in pixels; velocities in pixels per frame. Parameters left as None take the Rust defaults
     (neighbor_radius 150, max_neighbors 10, time_horizon 5, max_speed 50, polygon_sides 8,
     sf_relaxation_time 2, sf_strength 1, sf_range 10, threads 0). threads: 0 spreads a large
-    crowd's step over every core (the calling thread and helper threads started once per
-    process), 1 keeps it on the calling thread, n uses n threads in all; the velocities are the
-    same whatever the number. Returns (new_velocities, new_positions) with new_positions =
+    crowd's step (10,000 agent-neighbour pairs or more) over every core (a thread pool made once
+    per process), 1 keeps it on the calling thread, n uses at most n threads; the velocities are
+    the same whatever the number. Returns (new_velocities, new_positions) with new_positions =
     positions + dt * new_velocities. Raises ValueError for bad shapes and
     densepeds.errors.ParameterError (a ValueError) for bad parameters. Releases the GIL.
     """

@@ -40,7 +40,7 @@ output_lost                 5        also report tracks (at the motion model's p
                                      many frames after their last match
 neighbor_radius, max_neighbors, time_horizon, max_speed, polygon_sides: the motion model's.
 threads                     0        threads for the motion model's step (at most 1024): 0 =
-                                     every core, used from 300 agent-neighbour pairs up; 1 =
+                                     every core, used from 10,000 agent-neighbour pairs up; 1 =
                                      the calling thread; results are the same whatever the number
 ==========================  =======  ===========================================================
 

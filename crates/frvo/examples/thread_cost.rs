@@ -17,7 +17,7 @@ fn main() {
     let (k, rounds) = (arg(1, 10), arg(2, 30).max(1));
     println!("| agents | pairs | one thread us/step | every core us/step | every core / one |");
     println!("|---:|---:|---:|---:|---:|");
-    for n in [20, 40, 80, 120, 160, 200, 300, 500, 1000] {
+    for n in [20, 40, 80, 160, 300, 500, 1000, 2000, 4000] {
         let agents = crowd(n);
         let model = |threads| {
             let p = MotionParams {

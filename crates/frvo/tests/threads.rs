@@ -105,7 +105,7 @@ fn cores() -> usize {
 /// models share the process's. Each must still give the one-thread velocities.
 #[test]
 fn concurrent_callers_give_the_same_velocities() {
-    let crowds: Vec<Vec<Agent>> = [60, 200, 400, 900]
+    let crowds: Vec<Vec<Agent>> = [60, 400, 1100, 2000]
         .into_iter()
         .map(|n| crowd(n, 100 + n as u64))
         .collect();
@@ -159,7 +159,7 @@ fn reused_model_gives_what_a_fresh_one_gives() {
         };
         let mut reused = Orca::new(params, footprint);
         let sizes = [1.0, 2.0, 0.5, 1.5, 1.0, 1.0, 0.7, 2.0];
-        for (k, (n, size)) in [300, 20, 600, 5, 0, 1, 300, 40]
+        for (k, (n, size)) in [300, 20, 1200, 5, 0, 1, 1100, 40]
             .into_iter()
             .zip(sizes)
             .enumerate()

@@ -24,9 +24,9 @@ use crate::neighbors::NeighborGrid;
 use crate::velocity_obstacle::{avoidance, avoidance_circle, reciprocal_line};
 
 /// Below this many agent-neighbour pairs (agents x `max_neighbors`) a step stays on the calling
-/// thread: handing the agents to a pool costs more than it saves. Measured with `cargo run -p
-/// frvo --release --example thread_cost` (see the README).
-pub const PARALLEL_MIN_PAIRS: usize = 2000;
+/// thread: measured with `examples/thread_cost.rs` (README, Speed), smaller crowds were slower
+/// on every core than on one thread.
+pub const PARALLEL_MIN_PAIRS: usize = 10_000;
 
 /// How a pedestrian's footprint is built from its axes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
