@@ -125,11 +125,10 @@ impl Orca {
         if self.params.threads == 1 || pairs < self.parallel_min_pairs {
             return None;
         }
-        let pool = match self.params.threads {
+        Some(match self.params.threads {
             0 => every_core_pool(),
-            n => Arc::clone(self.own_pool.get_or_init(|| Arc::new(Pool::new(n)))),
-        };
-        pool.usable().then_some(pool)
+            threads => Arc::clone(self.own_pool.get_or_init(|| Arc::new(Pool::new(threads)))),
+        })
     }
 }
 
@@ -160,9 +159,10 @@ impl MotionModel for Orca {
             dt: sane_dt(dt),
         };
         let pool = self.pool(agents.len());
-        self.parallel = pool.is_some();
-        let results: Vec<(V2, bool)> = match pool {
-            Some(pool) => pool.pool.install(|| {
+        let threads = pool.as_deref().and_then(Pool::threads);
+        self.parallel = threads.is_some();
+        let results: Vec<(V2, bool)> = match threads {
+            Some(threads) => threads.install(|| {
                 (0..agents.len())
                     .into_par_iter()
                     .map_init(Scratch::default, |s, i| crowd.new_velocity(i, s))
@@ -246,28 +246,28 @@ impl Crowd<'_> {
 }
 
 /// A rayon pool and the process that made it: a forked child has none of its threads, so a
-/// step there stays on the calling thread.
+/// step there stays on the calling thread, as it does where the system refused the threads.
 #[derive(Debug)]
 struct Pool {
-    pool: rayon::ThreadPool,
+    pool: Option<rayon::ThreadPool>,
     pid: u32,
 }
 
 impl Pool {
-    /// A pool of `threads` threads (one thread if the system refuses to start more).
     fn new(threads: usize) -> Self {
-        let build = |n| rayon::ThreadPoolBuilder::new().num_threads(n).build();
-        let pool = build(threads)
-            .or_else(|_| build(1))
-            .expect("a one-thread pool");
+        let builder = rayon::ThreadPoolBuilder::new().num_threads(threads);
         Self {
-            pool,
+            pool: builder.build().ok(),
             pid: std::process::id(),
         }
     }
 
-    fn usable(&self) -> bool {
-        self.pool.current_num_threads() > 1 && self.pid == std::process::id()
+    /// The pool, if a step can spread over it here.
+    fn threads(&self) -> Option<&rayon::ThreadPool> {
+        let here = self.pid == std::process::id();
+        self.pool
+            .as_ref()
+            .filter(|pool| here && pool.current_num_threads() > 1)
     }
 }
 
