@@ -35,9 +35,10 @@ pub fn avoidance(p: V2, sum: &Polygon, w: V2, tau: f64, dt: f64) -> Avoidance {
     let pts = sum.points();
     let n = pts.len();
     let next = |i: usize| wrap(i + 1, n);
-    // Edge i (from vertex i to i + 1) faces the origin when the origin is on its outer side.
-    // The facing edges of a convex polygon are one contiguous run (none when the origin is
-    // inside); `first` is where it starts.
+    // Edge i (from vertex i to i + 1) faces the origin when the origin is on its outer (right)
+    // side: cross(edge, 0 - (p + v_i)) < 0, i.e. cross(edge, p + v_i) > 0. The facing edges
+    // of a convex polygon are one contiguous run (none when the origin is inside); `first` is
+    // where it starts.
     let mut faces = [false; MAX_VERTICES];
     for i in 0..n {
         faces[i] = cross(pts[next(i)] - pts[i], p + pts[i]) > 0.0;
