@@ -33,11 +33,12 @@ def step_crowd(
     axes[:, 0] is the ellipse extent along the direction of motion (l), axes[:, 1] across it (w),
     in pixels; velocities in pixels per frame. The keyword parameters are the tracker's motion
     parameters, with the same ranges; None takes their defaults (``PARAMS``). threads: 0 spreads
-    a large crowd's step over every core (the calling thread and helper threads started once per
-    process), 1 keeps it on the calling thread, n uses n threads in all; the velocities are the
-    same whatever the number. Returns (new_velocities, new_positions) with new_positions =
-    positions + dt * new_velocities. Raises densepeds.errors.InputError for arrays of the wrong
-    shape or dtype (complex included) and ParameterError for bad parameters (both ValueErrors).
+    a large crowd's step (10,000 agent-neighbour pairs or more) over every core (a thread pool
+    made once per process), 1 keeps it on the calling thread, n uses at most n threads; the
+    velocities are the same whatever the number. Returns (new_velocities, new_positions) with
+    new_positions = positions + dt * new_velocities. Raises densepeds.errors.InputError for
+    arrays of the wrong shape or dtype (complex included) and ParameterError for bad parameters
+    (both ValueErrors).
     Releases the GIL.
     """
 

@@ -84,7 +84,7 @@ sf_strength             float  1.0      [0, inf)         social forces: repulsio
                                                          contact, pixels per frame squared
 sf_range                float  10.0     (0, inf)         social forces: repulsion range, pixels
 threads                 int    0        0..=1024         threads for a crowd step (0: every core,
-                                                         from 300 agent-neighbour pairs; 1:
+                                                         from 10,000 agent-neighbour pairs; 1:
                                                          caller's)
 ======================  =====  =======  ===============  ===========================================
 .. end of generated parameters

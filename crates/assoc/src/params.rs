@@ -442,7 +442,7 @@ tracker_params! {
         sf_range: f64, POSITIVE,
             "social forces: repulsion range, pixels";
         threads: usize, ints(0, frvo::model::MAX_THREADS as u64),
-            "threads for a crowd step (0: every core, from 300 agent-neighbour pairs; 1: caller's)";
+            "threads for a crowd step (0: every core, from 10,000 agent-neighbour pairs; 1: caller's)";
     }
 }
 
