@@ -73,6 +73,9 @@ class TrackerKwargs(TypedDict, total=False):
     new_track_threshold: float
     second_pass: bool
     low_threshold: float
+    score_scale: str
+    score_window: int
+    score_warm_up: int
     low_iou_threshold: float
     low_max_age: int
     recovery: bool
@@ -113,6 +116,9 @@ class Tracker:
         new_track_threshold: float = 0.3,
         second_pass: bool = True,
         low_threshold: float = 0.05,
+        score_scale: str = "range",
+        score_window: int = 2000,
+        score_warm_up: int = 100,
         low_iou_threshold: float = 0.5,
         low_max_age: int = 60,
         recovery: bool = True,

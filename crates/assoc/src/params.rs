@@ -7,6 +7,7 @@
 //! A value outside its range is rejected with [`TrackError::InvalidParameter`]; every value
 //! inside it is used as given (nothing is clamped or replaced further down).
 
+use crate::score_scale::{ScoreScale, SCORE_SCALE_NAMES};
 use crate::TrackError;
 use frvo::{MotionKind, MotionParams};
 
@@ -268,6 +269,19 @@ impl Field for MotionKind {
     }
 }
 
+impl Field for ScoreScale {
+    const KIND: ParamKind = ParamKind::Choice;
+    fn to_value(&self) -> ParamValue {
+        ParamValue::Choice(self.name().into())
+    }
+    fn from_value(v: &ParamValue) -> Option<Self> {
+        match v {
+            ParamValue::Choice(s) => s.parse().ok(),
+            _ => None,
+        }
+    }
+}
+
 /// The name a motion model is chosen by (one of [`MOTION_NAMES`]).
 pub fn motion_name(kind: MotionKind) -> &'static str {
     match kind {
@@ -397,6 +411,12 @@ tracker_params! {
             "ByteTrack-style pass: unmatched tracks vs detections in [low_threshold, det_threshold)";
         low_threshold: f64 = 0.05, ANY,
             "lowest score used by the second pass";
+        score_scale: ScoreScale = ScoreScale::Range, Range::Choice(SCORE_SCALE_NAMES),
+            "how the score thresholds are read: absolute (as given), range (a place between the lowest score seen and the highest, at least 1), rank (a quantile of the last score_window scores)";
+        score_window: usize = 2000, ints(1, USIZE_MAX),
+            "scores (the last ones seen) whose quantiles the rank score scale reads thresholds as";
+        score_warm_up: usize = 100, ints(0, USIZE_MAX),
+            "scores to see before the lowest one is taken for the detector's floor (range) or quantiles are used (rank; range before)";
         low_iou_threshold: f64 = 0.5, UNIT,
             "smallest IoU for a second-pass match";
         low_max_age: u32 = 60, ints(0, U32_MAX),
@@ -458,9 +478,11 @@ impl TrackerParams {
     /// optimally; no score thresholds, no second pass, no recovery, no size smoothing, only
     /// matched tracks reported). Equivalent to the keyword arguments
     /// `det_threshold=-inf, new_track_threshold=-inf, second_pass=False, recovery=False,
-    /// size_smoothing=0, output_lost=0`. Other fields keep their defaults.
+    /// size_smoothing=0, output_lost=0, score_scale="absolute"`. Other fields keep their
+    /// defaults.
     pub fn pure() -> Self {
         Self {
+            score_scale: ScoreScale::Absolute,
             det_threshold: f64::NEG_INFINITY,
             new_track_threshold: f64::NEG_INFINITY,
             second_pass: false,

@@ -13,6 +13,7 @@
 use crate::cost::{centre, iou, normalise, validate_boxes, BBox};
 use crate::lap::{Edge, SparseMatcher};
 use crate::params::TrackerParams;
+use crate::score_scale::ScoreScaler;
 use crate::track::Track;
 use crate::TrackError;
 use frvo::{make_model, MotionModel};
@@ -45,6 +46,8 @@ pub struct Tracker {
     frame: u64,
     emb_dim: Option<usize>,
     matcher: SparseMatcher,
+    /// The scores seen, which place the score thresholds (`score_scale`).
+    scores_seen: ScoreScaler,
 }
 
 impl std::fmt::Debug for Tracker {
@@ -100,6 +103,7 @@ impl Tracker {
             frame: 0,
             emb_dim: None,
             matcher: SparseMatcher::default(),
+            scores_seen: ScoreScaler::new(),
         })
     }
 
@@ -113,6 +117,7 @@ impl Tracker {
         self.next_id = 1;
         self.frame = 0;
         self.emb_dim = None;
+        self.scores_seen.reset();
         self.model = make_model(self.params.motion, self.params.motion_params);
     }
 
@@ -185,7 +190,7 @@ impl Tracker {
         let n = self.validate(boxes, scores, embeddings)?;
         self.frame += 1;
         let frame = self.frame;
-        let p = self.params.clone();
+        let p = self.scores_seen.scaled(&self.params, scores);
         let dets: Vec<BBox> = boxes
             .chunks_exact(4)
             .map(|b| [b[0], b[1], b[2], b[3]])
