@@ -32,6 +32,7 @@ def test_rank_scale_starts_tracks_from_the_quantile_of_the_last_scores(threshold
         score_scale="rank",
         score_window=window,
         score_warm_up=0,
+        score_quantile_floor=0.0,
         det_threshold=threshold,
         new_track_threshold=threshold,
     )
@@ -45,7 +46,14 @@ def test_rank_scale_starts_tracks_from_the_quantile_of_the_last_scores(threshold
 
 def test_range_scale_reads_thresholds_from_the_floor_seen() -> None:
     rng = np.random.default_rng(8)
-    t = Tracker("cv", n_init=1, output_lost=0, score_warm_up=0, new_track_threshold=0.6)
+    t = Tracker(
+        "cv",
+        n_init=1,
+        output_lost=0,
+        score_warm_up=0,
+        score_quantile_floor=0,
+        new_track_threshold=0.6,
+    )
     assert t.params["score_scale"] == "range"  # the default
     seen: list[float] = []
     for row in range(5):
@@ -56,8 +64,31 @@ def test_range_scale_reads_thresholds_from_the_floor_seen() -> None:
         assert started(t, scores, row) == set(np.flatnonzero(scores >= cut).tolist())
 
 
+@pytest.mark.parametrize("q", [0.15, 0.6])
+def test_quantile_floor_keeps_the_window_s_lowest_scores_from_starting_tracks(q: float) -> None:
+    rng = np.random.default_rng(9)
+    window = 20
+    t = Tracker(
+        "cv",
+        n_init=1,
+        output_lost=0,
+        score_scale="absolute",
+        score_quantile_floor=q,
+        score_window=window,
+        score_warm_up=0,
+        det_threshold=0.2,
+        new_track_threshold=0.2,
+    )
+    seen: list[float] = []
+    for row in range(6):
+        scores = rng.random(int(rng.integers(2, 10)))
+        seen += scores.tolist()
+        cut = max(0.2, np.quantile(seen[-window:], q, method="inverted_cdf"))
+        assert started(t, scores, row) == set(np.flatnonzero(scores >= cut).tolist())
+
+
 def test_absolute_scale_and_the_pure_tracker_read_scores_as_given() -> None:
-    assert PURE_PARAMS["score_scale"] == "absolute"
+    assert PURE_PARAMS["score_scale"] == "absolute" and PURE_PARAMS["score_quantile_floor"] == 0
     t = Tracker("cv", n_init=1, output_lost=0, score_scale="absolute", new_track_threshold=0.6)
     scores = np.array([0.55, 0.6, 0.9, 0.59])
     assert started(t, scores, 0) == {1, 2}

@@ -75,6 +75,7 @@ class TrackerKwargs(TypedDict, total=False):
     low_threshold: float
     score_scale: str
     score_window: int
+    score_quantile_floor: float
     score_warm_up: int
     low_iou_threshold: float
     low_max_age: int
@@ -118,6 +119,7 @@ class Tracker:
         low_threshold: float = 0.05,
         score_scale: str = "range",
         score_window: int = 2000,
+        score_quantile_floor: float = 0.15,
         score_warm_up: int = 100,
         low_iou_threshold: float = 0.5,
         low_max_age: int = 60,

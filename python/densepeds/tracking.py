@@ -50,6 +50,10 @@ score_scale             str    'range'  absolute|range|rank  how the score thres
 score_window            int    2000     >= 1                 scores (the last ones seen) whose
                                                              quantiles the rank score scale reads
                                                              thresholds as
+score_quantile_floor    float  0.15     [0, 1]               det_threshold and new_track_threshold
+                                                             are at least this quantile of the last
+                                                             score_window scores, after warm-up (0:
+                                                             off)
 score_warm_up           int    100      >= 0                 scores to see before the lowest one is
                                                              taken for the detector's floor (range)
                                                              or quantiles are used (rank; range

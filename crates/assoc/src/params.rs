@@ -415,6 +415,8 @@ tracker_params! {
             "how the score thresholds are read: absolute (as given), range (a place between the lowest score seen and the highest, at least 1), rank (a quantile of the last score_window scores)";
         score_window: usize = 2000, ints(1, USIZE_MAX),
             "scores (the last ones seen) whose quantiles the rank score scale reads thresholds as";
+        score_quantile_floor: f64 = 0.15, UNIT,
+            "det_threshold and new_track_threshold are at least this quantile of the last score_window scores, after warm-up (0: off)";
         score_warm_up: usize = 100, ints(0, USIZE_MAX),
             "scores to see before the lowest one is taken for the detector's floor (range) or quantiles are used (rank; range before)";
         low_iou_threshold: f64 = 0.5, UNIT,
@@ -478,11 +480,12 @@ impl TrackerParams {
     /// optimally; no score thresholds, no second pass, no recovery, no size smoothing, only
     /// matched tracks reported). Equivalent to the keyword arguments
     /// `det_threshold=-inf, new_track_threshold=-inf, second_pass=False, recovery=False,
-    /// size_smoothing=0, output_lost=0, score_scale="absolute"`. Other fields keep their
-    /// defaults.
+    /// size_smoothing=0, output_lost=0, score_scale="absolute", score_quantile_floor=0`. Other
+    /// fields keep their defaults.
     pub fn pure() -> Self {
         Self {
             score_scale: ScoreScale::Absolute,
+            score_quantile_floor: 0.0,
             det_threshold: f64::NEG_INFINITY,
             new_track_threshold: f64::NEG_INFINITY,
             second_pass: false,

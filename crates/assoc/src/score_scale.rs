@@ -11,6 +11,10 @@
 //! fraction `t` of them at or below it; `t <= 0` keeps every score, `t > 1` none); until
 //! `warm_up` scores have been seen it reads `t` as `Range` does.
 //!
+//! Whatever the scale, `score_quantile_floor` (a fraction `q`, 0: off) keeps the lowest scores of
+//! the window out of the matching stages and births: after warm-up, `det_threshold` and
+//! `new_track_threshold` are raised to at least the `q`-quantile of the last `window` scores.
+//!
 //! The tracker converts its thresholds once per frame, after observing that frame's scores, and
 //! compares the raw scores with the converted cuts (a score passes a cut when `score >= cut`).
 
@@ -118,25 +122,7 @@ impl ScoreScaler {
         }
         match scale {
             ScoreScale::Absolute => t,
-            ScoreScale::Rank if self.seen >= warm_up && !self.sorted.is_empty() => {
-                let n = self.sorted.len();
-                if t <= 0.0 {
-                    f64::NEG_INFINITY
-                } else if t > 1.0 {
-                    f64::INFINITY
-                } else {
-                    // Smallest k with (k + 1) / n >= t (t * n first, then fixed up exactly).
-                    let frac = |k: usize| (k + 1) as f64 / n as f64;
-                    let mut k = ((t * n as f64).ceil() as usize).clamp(1, n) - 1;
-                    while k > 0 && frac(k - 1) >= t {
-                        k -= 1;
-                    }
-                    while k + 1 < n && frac(k) < t {
-                        k += 1;
-                    }
-                    self.sorted[k]
-                }
-            }
+            ScoreScale::Rank if self.seen >= warm_up && !self.sorted.is_empty() => self.quantile(t),
             ScoreScale::Range | ScoreScale::Rank => {
                 let lo = if self.seen < warm_up {
                     self.lo.min(0.0)
@@ -153,6 +139,28 @@ impl ScoreScaler {
         }
     }
 
+    /// The `t`-quantile of the last scores kept: the smallest of them with at least a fraction
+    /// `t` of them at or below it (`-inf` for `t <= 0` or when none is kept, `inf` for `t > 1`).
+    pub fn quantile(&self, t: f64) -> f64 {
+        let n = self.sorted.len();
+        if t <= 0.0 || n == 0 {
+            return f64::NEG_INFINITY;
+        }
+        if t > 1.0 {
+            return f64::INFINITY;
+        }
+        // Smallest k with (k + 1) / n >= t (t * n first, then fixed up exactly).
+        let frac = |k: usize| (k + 1) as f64 / n as f64;
+        let mut k = ((t * n as f64).ceil() as usize).clamp(1, n) - 1;
+        while k > 0 && frac(k - 1) >= t {
+            k -= 1;
+        }
+        while k + 1 < n && frac(k) < t {
+            k += 1;
+        }
+        self.sorted[k]
+    }
+
     /// Observes one frame's scores, then returns `params` with its score thresholds
     /// (`det_threshold`, `new_track_threshold`, `low_threshold`) replaced by the raw cuts they
     /// stand for in `params.score_scale`.
@@ -165,6 +173,11 @@ impl ScoreScaler {
             &mut p.low_threshold,
         ] {
             *t = self.cut(p.score_scale, *t, p.score_warm_up);
+        }
+        if p.score_quantile_floor > 0.0 && self.seen >= p.score_warm_up {
+            let q = self.quantile(p.score_quantile_floor);
+            p.det_threshold = p.det_threshold.max(q);
+            p.new_track_threshold = p.new_track_threshold.max(q);
         }
         p
     }

@@ -79,6 +79,41 @@ fn rank_cut_is_the_quantile_of_the_last_window_scores() {
 }
 
 #[test]
+fn quantile_floor_raises_det_and_new_cuts_to_the_window_quantile() {
+    let mut rng = Lcg(13);
+    for (q, window, warm_up) in [(0.15, 40, 30), (0.5, 7, 0), (1.0, 100, 0)] {
+        let p = TrackerParams {
+            score_quantile_floor: q,
+            score_window: window,
+            score_warm_up: warm_up,
+            ..TrackerParams::default()
+        };
+        let mut s = ScoreScaler::new();
+        let mut reference = ScoreScaler::new();
+        let mut all: Vec<f64> = Vec::new();
+        for _ in 0..25 {
+            let scores: Vec<f64> = (0..5).map(|_| 0.5 + 0.5 * rng.next()).collect();
+            let got = s.scaled(&p, &scores);
+            reference.observe(&scores, window);
+            all.extend(&scores);
+            let last = &all[all.len().saturating_sub(window)..];
+            let floor = if all.len() >= warm_up {
+                brute_quantile(last, q)
+            } else {
+                f64::NEG_INFINITY
+            };
+            let scale = |t| reference.cut(p.score_scale, t, warm_up);
+            assert_eq!(got.det_threshold, scale(p.det_threshold).max(floor));
+            assert_eq!(
+                got.new_track_threshold,
+                scale(p.new_track_threshold).max(floor)
+            );
+            assert_eq!(got.low_threshold, scale(p.low_threshold));
+        }
+    }
+}
+
+#[test]
 fn range_cut_places_the_threshold_between_floor_and_highest() {
     let mut rng = Lcg(11);
     for (lo, width, warm_up) in [(0.5, 0.5, 0), (-3.0, 140.0, 20), (0.1, 0.6, 5)] {
@@ -127,6 +162,7 @@ fn params(scale: ScoreScale) -> TrackerParams {
         output_lost: 0,
         score_scale: scale,
         score_warm_up: 0,
+        score_quantile_floor: 0.0,
         ..TrackerParams::default()
     }
 }
@@ -211,6 +247,7 @@ fn range_scale_reads_a_floor_cut_detector_from_its_floor() {
 #[test]
 fn pure_tracker_reads_scores_as_given_and_default_reads_the_range() {
     assert_eq!(TrackerParams::pure().score_scale, ScoreScale::Absolute);
+    assert_eq!(TrackerParams::pure().score_quantile_floor, 0.0);
     assert_eq!(TrackerParams::default().score_scale, ScoreScale::Range);
     let p = TrackerParams::default();
     let mut s = ScoreScaler::new();
