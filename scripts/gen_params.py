@@ -36,6 +36,11 @@ def _value(v: object) -> str:
     return repr(v)
 
 
+def _stub_value(v: object) -> str:
+    """A default as the stub writes it (a name in double quotes, as ruff formats it)."""
+    return f'"{v}"' if isinstance(v, str) else _value(v)
+
+
 def docs_table(params: Sequence[Mapping[str, Any]]) -> list[str]:
     """The reStructuredText table of every parameter: name, type, default, range, meaning."""
     rows = [(p["name"], p["type"], _value(p["default"]), p["range"], p["doc"]) for p in params]
@@ -63,7 +68,7 @@ def stub_init(params: Sequence[Mapping[str, Any]]) -> list[str]:
     lines = ["def __init__(", "    self,", '    motion: str = "frvo",', "    *,"]
     for p in params:
         if p["name"] != "motion":
-            lines.append(f"    {p['name']}: {p['type']} = {_value(p['default'])},")
+            lines.append(f"    {p['name']}: {p['type']} = {_stub_value(p['default'])},")
     return [*lines, ") -> None: ..."]
 
 

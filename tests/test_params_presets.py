@@ -22,11 +22,15 @@ def test_every_preset_can_fire_above_its_floor(name: str) -> None:
 
 
 def test_the_check_refuses_thresholds_under_the_floor() -> None:
-    # Mask R-CNN under the YOLO preset (as before presets were per detector): its floor of 0.5
-    # leaves the second pass [0.15, 0.3) nothing to work on.
-    bad = dataclasses.replace(PRESETS["yoloseg"], name="bad", score_floor=0.5)
+    # Absolute cuts of 0.15 / 0.3 under a floor of 0.5 leave the second pass nothing to work on;
+    # in the range score scale the same cuts are places above the floor seen, and fire.
+    cuts = {"low_threshold": 0.15, "det_threshold": 0.3}
+    bad = dataclasses.replace(
+        PRESETS["yoloseg"], name="bad", score_floor=0.5, tracker={**cuts, "score_scale": "absolute"}
+    )
     with pytest.raises(ParameterError, match="second pass"):
         bad.check()
+    dataclasses.replace(bad, tracker={**cuts, "score_scale": "range"}).check()
     unborn = dataclasses.replace(PRESETS["detfile"], tracker={"new_track_threshold": 1.5})
     with pytest.raises(ParameterError, match="starts a track"):
         unborn.check()
@@ -62,7 +66,7 @@ def test_pipeline_applies_and_shows_its_preset() -> None:
     # Named explicitly, for detections given by the caller; the caller's values win.
     pipe = Pipeline(None, preset="maskrcnn", det_threshold=0.8, min_height=10)
     assert pipe.params["preset"] == "maskrcnn" and pipe.params["det_threshold"] == 0.8
-    assert pipe.params["new_track_threshold"] == 0.7 and pipe.params["min_height"] == 10
+    assert pipe.params["new_track_threshold"] == 0.4 and pipe.params["min_height"] == 10
     with pytest.raises(ParameterError, match="unknown preset 'nope'"):
         get_preset("nope")
     with pytest.raises(ParameterError, match="unknown preset"):

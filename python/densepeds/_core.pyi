@@ -74,6 +74,10 @@ class TrackerKwargs(TypedDict, total=False):
     new_track_threshold: float
     second_pass: bool
     low_threshold: float
+    score_scale: str
+    score_window: int
+    score_quantile_floor: float
+    score_warm_up: int
     low_iou_threshold: float
     low_max_age: int
     recovery: bool
@@ -86,7 +90,6 @@ class TrackerKwargs(TypedDict, total=False):
     output_lost: int
     occluded_output: int
     occlusion_coverage: float
-    relative_scores: bool
     neighbor_radius: float
     max_neighbors: int
     time_horizon: float
@@ -117,6 +120,10 @@ class Tracker:
         new_track_threshold: float = 0.3,
         second_pass: bool = True,
         low_threshold: float = 0.05,
+        score_scale: str = "range",
+        score_window: int = 2000,
+        score_quantile_floor: float = 0.15,
+        score_warm_up: int = 100,
         low_iou_threshold: float = 0.5,
         low_max_age: int = 60,
         recovery: bool = True,
@@ -129,7 +136,6 @@ class Tracker:
         output_lost: int = 5,
         occluded_output: int = 10,
         occlusion_coverage: float = 0.5,
-        relative_scores: bool = True,
         neighbor_radius: float = 150.0,
         max_neighbors: int = 10,
         time_horizon: float = 5.0,

@@ -16,6 +16,9 @@ Where a detection's score is cut, in order (every cut is ``score >= value`` unle
 3. the tracker: detections in ``[low_threshold, det_threshold)`` only extend tracks (second
    pass), those from ``det_threshold`` up are matched in every stage, and those from
    ``new_track_threshold`` (and ``det_threshold``) up may start a track.
+   The tracker reads these thresholds in its ``score_scale`` (by default ``range``: a place
+   between the lowest score seen, the detector's floor, and the highest, at least 1), so a
+   preset writes a cut tuned on absolute scores as its place above the floor (``_place``).
 
 ``Preset.check`` asserts that each tracker stage can fire above the floor.
 """
@@ -47,6 +50,8 @@ class Preset:
 
         p = {name: row["default"] for name, row in PARAMS.items()} | dict(self.tracker)
         floor = -float("inf") if self.score_floor is None else self.score_floor
+        if p["score_scale"] != "absolute":
+            floor = 0.0  # the thresholds are places in the scores seen, from 0 up
         cuts = ("low_threshold", "det_threshold", "new_track_threshold")
         low, det, new = (float(p[k]) for k in cuts)
         if p["second_pass"] and not (max(low, floor) < det):
@@ -87,9 +92,13 @@ _CNN_APPEARANCE: dict[str, float | int | bool] = {
     "recovery": False,
     # Box sizes of a tiled detector jitter from frame to frame: smooth them more.
     "size_smoothing": 0.7,
-    # The score cuts below are stated on the detector's own scale (its floor is known).
-    "relative_scores": False,
 }
+
+
+def _place(score: float, floor: float) -> float:
+    """Where ``score`` lies between a detector's floor and 1 (a threshold in the range scale)."""
+    return round((score - floor) / (1.0 - floor), 4)
+
 
 PRESETS: Mapping[str, Preset] = MappingProxyType(
     {
@@ -108,13 +117,15 @@ PRESETS: Mapping[str, Preset] = MappingProxyType(
                 # The segmenter scores the people of a dense crowd low: boxes from 0.15 extend
                 # tracks (second pass, IoU >= 0.5), from 0.3 are matched, from 0.35 start tracks
                 # (its float copy makes few confident false positives, so births this low are
-                # safe; the 0.6-0.7 of other trackers starts too few).
+                # safe; the 0.6-0.7 of other trackers starts too few). The cuts are placed above
+                # the floor the tracker observes, so a copy whose scores start higher (the int8
+                # graph's start at 0.18) has its cuts moved up with them.
                 score_floor=0.15,
                 detection=_CNN_DETECTION,
                 tracker={
-                    "low_threshold": 0.15,
-                    "det_threshold": 0.3,
-                    "new_track_threshold": 0.35,
+                    "low_threshold": _place(0.15, 0.15),
+                    "det_threshold": _place(0.3, 0.15),
+                    "new_track_threshold": _place(0.35, 0.15),
                     **_CNN_APPEARANCE,
                 },
             ),
@@ -127,9 +138,9 @@ PRESETS: Mapping[str, Preset] = MappingProxyType(
                 score_floor=0.5,
                 detection=_CNN_DETECTION,
                 tracker={
-                    "low_threshold": 0.5,
-                    "det_threshold": 0.7,
-                    "new_track_threshold": 0.7,
+                    "low_threshold": _place(0.5, 0.5),
+                    "det_threshold": _place(0.7, 0.5),
+                    "new_track_threshold": _place(0.7, 0.5),
                     **_CNN_APPEARANCE,
                 },
             ),

@@ -6,10 +6,12 @@ pub mod error;
 pub mod lap;
 pub mod occlusion;
 pub mod params;
+pub mod score_scale;
 mod track;
 pub mod tracker;
 
 pub use error::TrackError;
 pub use lap::{linear_sum_assignment, Edge, LapWorkspace, SparseMatcher};
 pub use params::{ParamKind, ParamSpec, ParamValue, Range, TrackerParams, PARAMS};
+pub use score_scale::{ScoreScale, ScoreScaler};
 pub use tracker::{Embeddings, TrackOutput, Tracker};

@@ -7,6 +7,7 @@
 //! A value outside its range is rejected with [`TrackError::InvalidParameter`]; every value
 //! inside it is used as given (nothing is clamped or replaced further down).
 
+use crate::score_scale::{ScoreScale, SCORE_SCALE_NAMES};
 use crate::TrackError;
 use frvo::{MotionKind, MotionParams};
 
@@ -268,6 +269,19 @@ impl Field for MotionKind {
     }
 }
 
+impl Field for ScoreScale {
+    const KIND: ParamKind = ParamKind::Choice;
+    fn to_value(&self) -> ParamValue {
+        ParamValue::Choice(self.name().into())
+    }
+    fn from_value(v: &ParamValue) -> Option<Self> {
+        match v {
+            ParamValue::Choice(s) => s.parse().ok(),
+            _ => None,
+        }
+    }
+}
+
 /// The name a motion model is chosen by (one of [`MOTION_NAMES`]).
 pub fn motion_name(kind: MotionKind) -> &'static str {
     match kind {
@@ -397,6 +411,14 @@ tracker_params! {
             "ByteTrack-style pass: unmatched tracks vs detections in [low_threshold, det_threshold)";
         low_threshold: f64 = 0.05, ANY,
             "lowest score used by the second pass";
+        score_scale: ScoreScale = ScoreScale::Range, Range::Choice(SCORE_SCALE_NAMES),
+            "how the score thresholds are read: absolute (as given), range (a place between the lowest score seen and the highest, at least 1), rank (a quantile of the last score_window scores)";
+        score_window: usize = 2000, ints(1, USIZE_MAX),
+            "scores (the last ones seen) whose quantiles the rank score scale reads thresholds as";
+        score_quantile_floor: f64 = 0.15, UNIT,
+            "det_threshold and new_track_threshold are at least this quantile of the last score_window scores, after warm-up (0: off)";
+        score_warm_up: usize = 100, ints(0, USIZE_MAX),
+            "scores to see before the lowest one is taken for the detector's floor (range) or quantiles are used (rank; range before)";
         low_iou_threshold: f64 = 0.5, UNIT,
             "smallest IoU for a second-pass match";
         low_max_age: u32 = 60, ints(0, U32_MAX),
@@ -421,8 +443,6 @@ tracker_params! {
             "an unmatched track covered by nearer detections is reported up to this many frames; one mostly outside the image (set_image_size) is deleted (0: off)";
         occlusion_coverage: f64 = 0.5, UNIT,
             "covered fraction of an unmatched track's predicted box that means occluded";
-        relative_scores: bool = true, Range::Bool,
-            "score thresholds apply to scores placed in the range seen so far, from the detector's floor (lowest score) to the highest";
     }
     motion {
         neighbor_radius: f64, POSITIVE,
@@ -464,10 +484,12 @@ impl TrackerParams {
     /// optimally; no score thresholds, no second pass, no recovery, no size smoothing, only
     /// matched tracks reported). Equivalent to the keyword arguments
     /// `det_threshold=-inf, new_track_threshold=-inf, second_pass=False, recovery=False,
-    /// size_smoothing=0, output_lost=0, occluded_output=0, relative_scores=False`. Other fields
-    /// keep their defaults.
+    /// size_smoothing=0, output_lost=0, occluded_output=0, score_scale="absolute",
+    /// score_quantile_floor=0`. Other fields keep their defaults.
     pub fn pure() -> Self {
         Self {
+            score_scale: ScoreScale::Absolute,
+            score_quantile_floor: 0.0,
             det_threshold: f64::NEG_INFINITY,
             new_track_threshold: f64::NEG_INFINITY,
             second_pass: false,
@@ -475,7 +497,6 @@ impl TrackerParams {
             size_smoothing: 0.0,
             output_lost: 0,
             occluded_output: 0,
-            relative_scores: false,
             ..Self::default()
         }
     }

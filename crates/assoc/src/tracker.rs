@@ -16,6 +16,7 @@ use crate::cost::{centre, iou, normalise, validate_boxes, BBox};
 use crate::lap::{Edge, SparseMatcher};
 use crate::occlusion::{classify, Unmatched};
 use crate::params::TrackerParams;
+use crate::score_scale::ScoreScaler;
 use crate::track::Track;
 use crate::TrackError;
 use frvo::{make_model, MotionModel};
@@ -50,8 +51,8 @@ pub struct Tracker {
     matcher: SparseMatcher,
     /// Image size `[width, height]` when the caller gave it.
     image_size: Option<[f64; 2]>,
-    /// Scores seen since the start: how many, the lowest and the highest.
-    seen_scores: (usize, f64, f64),
+    /// The scores seen, which place the score thresholds (`score_scale`).
+    scores_seen: ScoreScaler,
 }
 
 impl std::fmt::Debug for Tracker {
@@ -108,7 +109,7 @@ impl Tracker {
             emb_dim: None,
             matcher: SparseMatcher::default(),
             image_size: None,
-            seen_scores: (0, f64::INFINITY, f64::NEG_INFINITY),
+            scores_seen: ScoreScaler::new(),
         })
     }
 
@@ -122,7 +123,7 @@ impl Tracker {
         self.next_id = 1;
         self.frame = 0;
         self.emb_dim = None;
-        self.seen_scores = (0, f64::INFINITY, f64::NEG_INFINITY);
+        self.scores_seen.reset();
         self.model = make_model(self.params.motion, self.params.motion_params);
     }
 
@@ -208,7 +209,7 @@ impl Tracker {
         let n = self.validate(boxes, scores, embeddings)?;
         self.frame += 1;
         let frame = self.frame;
-        let p = self.params.clone();
+        let p = self.scores_seen.scaled(&self.params, scores);
         let dets: Vec<BBox> = boxes
             .chunks_exact(4)
             .map(|b| [b[0], b[1], b[2], b[3]])
@@ -233,8 +234,7 @@ impl Tracker {
             }
         }
 
-        let level = self.score_levels(scores, p.relative_scores);
-        let high = |j: usize| level[j] >= p.det_threshold;
+        let high = |j: usize| scores[j] >= p.det_threshold;
         let nt = self.tracks.len();
         let mut track_det: Vec<Option<usize>> = vec![None; nt];
         let mut det_track: Vec<Option<usize>> = vec![None; n];
@@ -316,7 +316,7 @@ impl Tracker {
         // Stage 3: low-score detections for tracks unmatched for at most `low_max_age` frames.
         if p.second_pass {
             let low_index = DetIndex::new(&dets, |j| {
-                level[j] >= p.low_threshold && level[j] < p.det_threshold
+                scores[j] >= p.low_threshold && scores[j] < p.det_threshold
             });
             iou_edges(
                 &self.tracks,
@@ -397,7 +397,7 @@ impl Tracker {
 
         // New tracks from unmatched high-score detections.
         for j in 0..n {
-            if det_track[j].is_none() && high(j) && level[j] >= p.new_track_threshold {
+            if det_track[j].is_none() && high(j) && scores[j] >= p.new_track_threshold {
                 let mut t = Track::new(j, dets[j], scores[j], frame, emb_row(j), p.gallery_size);
                 if p.n_init <= 1 {
                     t.confirmed = true;
@@ -410,33 +410,6 @@ impl Tracker {
         }
 
         Ok(self.outputs())
-    }
-
-    /// The scores the thresholds are compared with: as given, or (`relative`) placed in the range
-    /// of scores seen so far, this frame's included: `(s - lo) / (hi - lo)` with `lo` the lowest
-    /// score seen (0 at most until [`WARM_UP_SCORES`] have been seen) and `hi` the highest (1 at
-    /// least), so that a detector whose scores start at its own threshold (e.g. 0.5) is read
-    /// from that floor.
-    fn score_levels(&mut self, scores: &[f64], relative: bool) -> Vec<f64> {
-        if !relative {
-            return scores.to_vec();
-        }
-        let (count, lo, hi) = &mut self.seen_scores;
-        for &s in scores {
-            *lo = lo.min(s);
-            *hi = hi.max(s);
-        }
-        *count += scores.len();
-        let lo = if *count < WARM_UP_SCORES {
-            lo.min(0.0)
-        } else {
-            *lo
-        };
-        let hi = hi.max(1.0);
-        if hi <= lo || !lo.is_finite() || !hi.is_finite() {
-            return scores.to_vec();
-        }
-        scores.iter().map(|&s| (s - lo) / (hi - lo)).collect()
     }
 
     fn outputs(&self) -> Vec<TrackOutput> {
@@ -460,9 +433,6 @@ impl Tracker {
         out
     }
 }
-
-/// Scores to see before the lowest of them is taken for the detector's floor.
-pub const WARM_UP_SCORES: usize = 30;
 
 /// Whether the centre of `b` lies within `r` of `c`.
 #[inline]

@@ -1,6 +1,6 @@
 //! Tracker behaviour: lifecycle, crossing, appearance stage, options, determinism, bad input.
 
-use assoc::{Embeddings, ParamValue, TrackError, TrackOutput, Tracker, TrackerParams};
+use assoc::{Embeddings, ParamValue, ScoreScale, TrackError, TrackOutput, Tracker, TrackerParams};
 use frvo::MotionKind;
 
 /// Defaults with constant velocity and only matched tracks reported (the lifecycle tests count
@@ -471,10 +471,12 @@ fn image_size_is_validated() {
 /// A detector whose scores start at its own floor of 0.5: warm-up frames of people far apart
 /// (scores 0.5-0.95), then a new person scoring 0.55 (just above the floor) and one scoring 0.95.
 /// Returns which of the two were reported (tracks start and are confirmed at once).
-fn births_from_a_floored_detector(relative_scores: bool) -> (bool, bool) {
+fn births_from_a_floored_detector(score_scale: ScoreScale) -> (bool, bool) {
     let mut t = Tracker::new(TrackerParams {
         n_init: 1,
-        relative_scores,
+        score_scale,
+        score_quantile_floor: 0.0,
+        score_warm_up: 10,
         ..cv_params()
     })
     .unwrap();
@@ -495,10 +497,16 @@ fn births_from_a_floored_detector(relative_scores: bool) -> (bool, bool) {
 }
 
 #[test]
-fn relative_scores_read_thresholds_from_the_detectors_floor() {
-    // Relative: 0.55 sits at 0.1 of the range seen (0.5-1), under det_threshold 0.3: only the
+fn range_scale_reads_thresholds_from_the_detectors_floor() {
+    // Range: 0.55 sits at 0.1 of the range seen (0.5-1), under det_threshold 0.3: only the
     // 0.95 person starts a track. As given: both do (0.55 >= 0.3).
-    assert_eq!(births_from_a_floored_detector(true), (false, true));
-    assert_eq!(births_from_a_floored_detector(false), (true, true));
-    assert!(!TrackerParams::pure().relative_scores);
+    assert_eq!(
+        births_from_a_floored_detector(ScoreScale::Range),
+        (false, true)
+    );
+    assert_eq!(
+        births_from_a_floored_detector(ScoreScale::Absolute),
+        (true, true)
+    );
+    assert_eq!(TrackerParams::pure().score_scale, ScoreScale::Absolute);
 }

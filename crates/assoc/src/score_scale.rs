@@ -1,0 +1,184 @@
+//! The scale the score thresholds are read in, learned online from the scores the tracker sees,
+//! so that one set of thresholds serves detectors whose scores differ in range and shape (an
+//! unbounded detector score, a file already cut at 0.5, a quantised network's shifted scores).
+//!
+//! [`ScoreScale::Absolute`] compares scores with the thresholds as given. [`ScoreScale::Range`]
+//! reads a threshold `t` as a place in the range of the scores seen so far: the raw cut is
+//! `lo + t * (hi - lo)`, `lo` the lowest score seen (the detector's floor) and `hi` the highest,
+//! at least 1 (until `warm_up` scores have been seen, `lo` is at most 0, so that a detector in
+//! `[0, 1]` starts with its scores as given). [`ScoreScale::Rank`] reads `t` as a fraction of the
+//! last `window` scores: the raw cut is their `t`-quantile (the smallest of them with at least a
+//! fraction `t` of them at or below it; `t <= 0` keeps every score, `t > 1` none); until
+//! `warm_up` scores have been seen it reads `t` as `Range` does.
+//!
+//! Whatever the scale, `score_quantile_floor` (a fraction `q`, 0: off) keeps the lowest scores of
+//! the window out of the matching stages and births: after warm-up, `det_threshold` and
+//! `new_track_threshold` are raised to at least the `q`-quantile of the last `window` scores.
+//!
+//! The tracker converts its thresholds once per frame, after observing that frame's scores, and
+//! compares the raw scores with the converted cuts (a score passes a cut when `score >= cut`).
+
+use crate::params::TrackerParams;
+use std::collections::VecDeque;
+use std::str::FromStr;
+
+/// How score thresholds are read (see the module doc).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ScoreScale {
+    Absolute,
+    Range,
+    Rank,
+}
+
+/// The names a score scale is chosen by, in [`ScoreScale`]'s order.
+pub const SCORE_SCALE_NAMES: &[&str] = &["absolute", "range", "rank"];
+
+impl ScoreScale {
+    /// The name this scale is chosen by (one of [`SCORE_SCALE_NAMES`]).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Absolute => "absolute",
+            Self::Range => "range",
+            Self::Rank => "rank",
+        }
+    }
+}
+
+impl FromStr for ScoreScale {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "absolute" => Ok(Self::Absolute),
+            "range" => Ok(Self::Range),
+            "rank" => Ok(Self::Rank),
+            _ => Err(format!(
+                "unknown score scale {s:?}; known: {}",
+                SCORE_SCALE_NAMES.join(", ")
+            )),
+        }
+    }
+}
+
+/// The scores seen so far: their count, lowest and highest, and the last `window` of them.
+#[derive(Clone, Debug)]
+pub struct ScoreScaler {
+    seen: usize,
+    lo: f64,
+    hi: f64,
+    /// The last scores in arrival order, and the same scores sorted.
+    recent: VecDeque<f64>,
+    sorted: Vec<f64>,
+}
+
+impl Default for ScoreScaler {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl ScoreScaler {
+    pub fn new() -> Self {
+        Self {
+            seen: 0,
+            lo: f64::INFINITY,
+            hi: f64::NEG_INFINITY,
+            recent: VecDeque::new(),
+            sorted: Vec::new(),
+        }
+    }
+
+    /// Forgets every score seen.
+    pub fn reset(&mut self) {
+        *self = Self::new();
+    }
+
+    /// Scores seen since creation or the last reset.
+    pub fn seen(&self) -> usize {
+        self.seen
+    }
+
+    /// Records one frame's scores (NaN is not expected: the tracker rejects it first); only the
+    /// last `window` are kept for [`ScoreScale::Rank`].
+    pub fn observe(&mut self, scores: &[f64], window: usize) {
+        for &s in scores {
+            self.seen += 1;
+            self.lo = self.lo.min(s);
+            self.hi = self.hi.max(s);
+            self.recent.push_back(s);
+            let at = self.sorted.partition_point(|&x| x < s);
+            self.sorted.insert(at, s);
+        }
+        while self.recent.len() > window.max(1) {
+            let old = self.recent.pop_front().expect("non-empty");
+            let at = self.sorted.partition_point(|&x| x < old);
+            self.sorted.remove(at);
+        }
+    }
+
+    /// The raw score that threshold `t` stands for in `scale` (`t` itself before any score).
+    pub fn cut(&self, scale: ScoreScale, t: f64, warm_up: usize) -> f64 {
+        if self.seen == 0 || t.is_infinite() {
+            return t;
+        }
+        match scale {
+            ScoreScale::Absolute => t,
+            ScoreScale::Rank if self.seen >= warm_up && !self.sorted.is_empty() => self.quantile(t),
+            ScoreScale::Range | ScoreScale::Rank => {
+                let lo = if self.seen < warm_up {
+                    self.lo.min(0.0)
+                } else {
+                    self.lo
+                };
+                let hi = self.hi.max(1.0);
+                if hi > lo && (hi - lo).is_finite() {
+                    lo + t * (hi - lo)
+                } else {
+                    t
+                }
+            }
+        }
+    }
+
+    /// The `t`-quantile of the last scores kept: the smallest of them with at least a fraction
+    /// `t` of them at or below it (`-inf` for `t <= 0` or when none is kept, `inf` for `t > 1`).
+    pub fn quantile(&self, t: f64) -> f64 {
+        let n = self.sorted.len();
+        if t <= 0.0 || n == 0 {
+            return f64::NEG_INFINITY;
+        }
+        if t > 1.0 {
+            return f64::INFINITY;
+        }
+        // Smallest k with (k + 1) / n >= t (t * n first, then fixed up exactly).
+        let frac = |k: usize| (k + 1) as f64 / n as f64;
+        let mut k = ((t * n as f64).ceil() as usize).clamp(1, n) - 1;
+        while k > 0 && frac(k - 1) >= t {
+            k -= 1;
+        }
+        while k + 1 < n && frac(k) < t {
+            k += 1;
+        }
+        self.sorted[k]
+    }
+
+    /// Observes one frame's scores, then returns `params` with its score thresholds
+    /// (`det_threshold`, `new_track_threshold`, `low_threshold`) replaced by the raw cuts they
+    /// stand for in `params.score_scale`.
+    pub fn scaled(&mut self, params: &TrackerParams, scores: &[f64]) -> TrackerParams {
+        let mut p = params.clone();
+        self.observe(scores, p.score_window);
+        for t in [
+            &mut p.det_threshold,
+            &mut p.new_track_threshold,
+            &mut p.low_threshold,
+        ] {
+            *t = self.cut(p.score_scale, *t, p.score_warm_up);
+        }
+        if p.score_quantile_floor > 0.0 && self.seen >= p.score_warm_up {
+            let q = self.quantile(p.score_quantile_floor);
+            p.det_threshold = p.det_threshold.max(q);
+            p.new_track_threshold = p.new_track_threshold.max(q);
+        }
+        p
+    }
+}

@@ -1,0 +1,104 @@
+"""The tracker's score scales against numpy: which detections start a track in each scale."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from densepeds.presets import PRESETS
+from densepeds.tracking import PURE_PARAMS, Tracker
+
+
+def far_boxes(n: int, row: int) -> np.ndarray:
+    """``n`` boxes far apart from each other and from every other row's."""
+    x = 300.0 * np.arange(n)
+    y = np.full(n, 400.0 * row)
+    return np.c_[x, y, x + 40, y + 100]
+
+
+def started(t: Tracker, scores: np.ndarray, row: int) -> set[int]:
+    """Indices of this frame's detections reported (n_init=1: started now; output_lost=0)."""
+    out = t.update(far_boxes(len(scores), row), scores)
+    return set(out.det_index.tolist())
+
+
+@pytest.mark.parametrize("threshold", [0.05, 0.3, 0.5, 0.9])
+def test_rank_scale_starts_tracks_from_the_quantile_of_the_last_scores(threshold: float) -> None:
+    rng = np.random.default_rng(5)
+    window = 25
+    t = Tracker(
+        "cv",
+        n_init=1,
+        output_lost=0,
+        score_scale="rank",
+        score_window=window,
+        score_warm_up=0,
+        score_quantile_floor=0.0,
+        det_threshold=threshold,
+        new_track_threshold=threshold,
+    )
+    seen: list[float] = []
+    for row in range(6):
+        scores = np.round(rng.gamma(2.0, 10.0, size=int(rng.integers(3, 12))), 1)
+        seen += scores.tolist()
+        cut = np.quantile(seen[-window:], threshold, method="inverted_cdf")
+        assert started(t, scores, row) == set(np.flatnonzero(scores >= cut).tolist())
+
+
+def test_range_scale_reads_thresholds_from_the_floor_seen() -> None:
+    rng = np.random.default_rng(8)
+    t = Tracker(
+        "cv",
+        n_init=1,
+        output_lost=0,
+        score_warm_up=0,
+        score_quantile_floor=0,
+        new_track_threshold=0.6,
+    )
+    assert t.params["score_scale"] == "range"  # the default
+    seen: list[float] = []
+    for row in range(5):
+        scores = 0.5 + 0.5 * rng.random(9)  # a detector cut at 0.5
+        seen += scores.tolist()
+        lo, hi = min(seen), max(max(seen), 1.0)
+        cut = lo + 0.6 * (hi - lo)
+        assert started(t, scores, row) == set(np.flatnonzero(scores >= cut).tolist())
+
+
+@pytest.mark.parametrize("q", [0.15, 0.6])
+def test_quantile_floor_keeps_the_window_s_lowest_scores_from_starting_tracks(q: float) -> None:
+    rng = np.random.default_rng(9)
+    window = 20
+    t = Tracker(
+        "cv",
+        n_init=1,
+        output_lost=0,
+        score_scale="absolute",
+        score_quantile_floor=q,
+        score_window=window,
+        score_warm_up=0,
+        det_threshold=0.2,
+        new_track_threshold=0.2,
+    )
+    seen: list[float] = []
+    for row in range(6):
+        scores = rng.random(int(rng.integers(2, 10)))
+        seen += scores.tolist()
+        cut = max(0.2, np.quantile(seen[-window:], q, method="inverted_cdf"))
+        assert started(t, scores, row) == set(np.flatnonzero(scores >= cut).tolist())
+
+
+def test_absolute_scale_and_the_pure_tracker_read_scores_as_given() -> None:
+    assert PURE_PARAMS["score_scale"] == "absolute" and PURE_PARAMS["score_quantile_floor"] == 0
+    t = Tracker("cv", n_init=1, output_lost=0, score_scale="absolute", new_track_threshold=0.6)
+    scores = np.array([0.55, 0.6, 0.9, 0.59])
+    assert started(t, scores, 0) == {1, 2}
+
+
+def test_cnn_presets_place_their_cuts_above_the_detector_floor() -> None:
+    # A cut tuned at score 0.3 over the segmenter's 0.15 floor is read as that place in range.
+    yoloseg = PRESETS["yoloseg"]
+    floor = yoloseg.score_floor
+    assert floor is not None
+    assert yoloseg.tracker["det_threshold"] == pytest.approx((0.3 - floor) / (1 - floor), abs=1e-4)
+    for preset in PRESETS.values():
+        preset.check()
