@@ -20,8 +20,8 @@ pub struct TrackerParams {
     pub max_age: u32,
     /// lambda: largest cosine distance for an appearance match (stage 1). 0.2.
     pub appearance_threshold: f64,
-    /// Embeddings kept per track (newest first out when full); the appearance cost is the smallest
-    /// distance to any of them. 20.
+    /// Embeddings remembered per track (oldest out first), summarised in at most 8 rows (means of
+    /// consecutive embeddings); the appearance cost is the smallest distance to a row. 20.
     pub gallery_size: usize,
     /// rho, in units of the track's box height: a detection can match a track only when its
     /// centre is within `gate_radius * height` of the track's predicted centre. `inf` disables. 1.0.
