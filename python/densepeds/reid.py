@@ -139,17 +139,7 @@ class ReID:
     def _run(
         self, batch_bgr: npt.NDArray[np.uint8], weights: npt.NDArray[np.float32] | None = None
     ) -> npt.NDArray[np.float32]:
-        k = self.kind
-        x = batch_bgr[..., ::-1] if k.rgb else batch_bgr
-        if k.dtype is np.uint8:
-            inp = np.ascontiguousarray(x)
-        else:
-            mul = np.float32(k.scale) / np.asarray(k.std, np.float32)
-            sub = np.asarray(k.mean, np.float32) / np.asarray(k.std, np.float32)
-            inp = x.astype(np.float32) * mul - sub
-        if k.layout == "NCHW":
-            inp = inp.transpose(0, 3, 1, 2)
-        feed: dict[str, np.ndarray] = {self.input_name: np.ascontiguousarray(inp)}
+        feed: dict[str, np.ndarray] = {self.input_name: self._input(batch_bgr)}
         if weights is None:
             out = self.session.run(None, feed)[0]
         else:
@@ -157,6 +147,26 @@ class ReID:
             feed[onnxutil.POOL_WEIGHTS] = weights
             out = session.run(None, feed)[0]
         return np.asarray(out, np.float32).reshape(len(batch_bgr), -1)
+
+    def _input(self, batch_bgr: npt.NDArray[np.uint8]) -> np.ndarray:
+        """The model's input tensor for BGR images [N, H, W, 3] of its input size."""
+        k = self.kind
+        x = batch_bgr[..., ::-1] if k.rgb else batch_bgr
+        if k.dtype is np.uint8:
+            inp = np.ascontiguousarray(x)
+            return inp.transpose(0, 3, 1, 2).copy() if k.layout == "NCHW" else inp
+        mul = np.float32(k.scale) / np.asarray(k.std, np.float32)
+        sub = np.asarray(k.mean, np.float32) / np.asarray(k.std, np.float32)
+        if k.layout == "NHWC":
+            return np.ascontiguousarray(x * mul - sub, np.float32)
+        # One pass per channel straight into the planar layout (the same float32 arithmetic
+        # as x * mul - sub, without the full-size temporaries and the transposing copy).
+        n, h, w, _ = x.shape
+        out = np.empty((n, 3, h, w), np.float32)
+        for c in range(3):
+            np.multiply(x[..., c], mul[c], out=out[:, c], dtype=np.float32)
+            out[:, c] -= sub[c]
+        return out
 
     def embed_crops(
         self,
