@@ -23,10 +23,9 @@ import numpy as np
 from densepeds.detect.yoloseg import YoloSegDetector
 from densepeds.motio import read_gt
 from densepeds.reid import ReID, separation, summarise
-from densepeds.segment import masks_for_boxes
+from densepeds.segment import FEATURES, masks_for_boxes
 
 REPO = Path(__file__).resolve().parent.parent
-FEATURES = ("bbox", "segmented", "masked_mean", "masked_blur", "masked_pool")
 
 
 def video_frames(path: Path, wanted: set[int]) -> dict[int, np.ndarray]:
@@ -85,7 +84,7 @@ def detection_rows(
 
 def recall_rows(model: Path, threads: int, shared: Path) -> list[str]:
     """Recall at IoU 0.5 of gt pedestrians with visibility >= 0.5 (as tests/test_detect.py)."""
-    from densepeds.detect.tiling import iou_matrix
+    from densepeds.boxes import iou_matrix
     from scipy.optimize import linear_sum_assignment
 
     mot17 = shared / "data" / "MOT17-02-FRCNN"

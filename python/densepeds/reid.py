@@ -18,10 +18,10 @@ import numpy.typing as npt
 import onnxruntime as ort
 
 from densepeds.detect import onnxutil
-from densepeds.detect.yoloseg import check_frame
 from densepeds.errors import ModelError, ParameterError
+from densepeds.frames import check_frame
 from densepeds.modelfiles import find_model
-from densepeds.segment import box_region, crop_mask, crops_for
+from densepeds.segment import bbox_crop, crops_for, person_masks
 from densepeds.types import Detections
 
 DEFAULT_MODEL = "osnet_x0_25_msmt17.onnx"
@@ -249,18 +249,10 @@ class ReID:
             half = (boxes[:, 3] - boxes[:, 1]) * (self.width / self.height) / 2
             boxes[:, 0], boxes[:, 2] = centre - half, centre + half
             dets = Detections(boxes.astype(np.float32), dets.scores, dets.masks, dets.mask_boxes)
-        if features == "masked_pool":
-            regions = [box_region(b, frame.shape[1], frame.shape[0]) for b in dets.boxes]
-            person = [
-                crop_mask(
-                    r,
-                    None if dets.masks is None else dets.masks[i],
-                    None if dets.mask_boxes is None else dets.mask_boxes[i],
-                )
-                for i, r in enumerate(regions)
-            ]
-            return self.embed_crops(crops_for(frame, dets, "bbox"), person)
-        return self.embed_crops(crops_for(frame, dets, features))
+        crops = crops_for(frame, dets, features)
+        if features == "masked_pool":  # plain crops, the masks weight the final pooling
+            return self.embed_crops(crops, person_masks(frame, dets))
+        return self.embed_crops(crops)
 
 
 @dataclass(frozen=True)
@@ -305,8 +297,7 @@ def thumbnails(frame: npt.NDArray[np.uint8], boxes: npt.ArrayLike) -> npt.NDArra
     b = np.asarray(boxes, np.float64).reshape(-1, 4)
     out = np.empty((len(b), THUMB_SIZE[1], THUMB_SIZE[0], 3), np.float32)
     for i, box in enumerate(b):
-        x0, y0, x1, y1 = box_region(box, frame.shape[1], frame.shape[0])
-        out[i] = cv2.resize(frame[y0:y1, x0:x1], THUMB_SIZE, interpolation=cv2.INTER_AREA)
+        out[i] = cv2.resize(bbox_crop(frame, box), THUMB_SIZE, interpolation=cv2.INTER_AREA)
     return out
 
 
@@ -317,7 +308,7 @@ def reuse_sources(
     prev: _Previous,
 ) -> npt.NDArray[np.intp]:
     """For each current box, the previous detection whose embedding it keeps, or -1."""
-    from densepeds.detect.tiling import iou_matrix
+    from densepeds.boxes import iou_matrix
 
     cur = np.asarray(boxes, np.float64).reshape(-1, 4)
     source = np.full(len(cur), -1, np.intp)
