@@ -77,6 +77,7 @@ class ReID:
         threads: int | None = None,
         batch_size: int = 32,
         reuse: bool | ReusePolicy = False,
+        input_size: tuple[int, int] | None = None,
     ) -> None:
         if batch_size < 1:
             raise ParameterError(f"batch_size must be >= 1, got {batch_size}")
@@ -85,7 +86,10 @@ class ReID:
         path = find_model(DEFAULT_MODEL) if model is None else find_model(str(model))
         self.path: Path = path
         self.batch_size = batch_size
-        self.session, self.rewritten = onnxutil.batched_session(path, threads)
+        self.input_size = input_size
+        self.session, self.rewritten = onnxutil.batched_session(
+            path, threads, input_size=input_size
+        )
         inputs = onnxutil.specs(self.session.get_inputs())
         outputs = onnxutil.specs(self.session.get_outputs())
         if len(inputs) != 1 or len(inputs[0].shape) != 4 or len(outputs) < 1:
@@ -130,7 +134,9 @@ class ReID:
         """The model with mask-weighted final pooling, built on first use."""
         if self._pooled is None:
             model = onnxutil.load_model(self.path)
-            if onnxutil.has_fixed_batch(model):
+            if self.input_size is not None:
+                model = onnxutil.with_input_size(model, *self.input_size)
+            if onnxutil.has_fixed_batch(model) or self.input_size is not None:
                 model = onnxutil.with_dynamic_batch(model)
             pooled, size = onnxutil.with_weighted_final_pool(model)
             self._pooled = (onnxutil.make_session(pooled, self.threads), size)
