@@ -5,7 +5,7 @@
 Inputs: synthetic crowds (people walking in random directions on a 1920x1080 view, box jitter,
 10% missed detections) where each person has a fixed random unit embedding
 plus per-frame noise (cosine distance about 0.1 to their own mean, about 1 to others). The
-tracker runs with the CNN preset (``densepeds.pipeline.CNN_TRACKER_DEFAULTS``: gallery of 100
+tracker runs with the CNN preset (``densepeds.presets``' ``yoloseg``: gallery of 100
 embeddings, appearance within one box height) and ``threads=1``. Frames after the first
 ``gallery_size`` are timed (the galleries are full by then); prints the median and p95 of
 ``Tracker.update`` (conversions included) per frame, the calling thread's CPU time (steadier than
@@ -21,7 +21,7 @@ import sys
 import time
 
 import numpy as np
-from densepeds.pipeline import CNN_TRACKER_DEFAULTS
+from densepeds.presets import get_preset
 from densepeds.tracking import Tracker
 
 NOISE = 0.015  # per-value noise on a unit 512-d embedding: cosine ~0.1 to the person's mean
@@ -54,7 +54,7 @@ def crowd_with_embeddings(
 
 def time_updates(people: int, frames: int, dim: int) -> tuple[float, float, float, int]:
     """(median wall ms, p95 wall ms, median CPU ms of this thread, detections a frame)."""
-    params = {**CNN_TRACKER_DEFAULTS, "threads": 1}
+    params = {**get_preset("yoloseg").tracker, "threads": 1}
     warm = int(params["gallery_size"])
     data = crowd_with_embeddings(people, warm + frames, dim)
     tracker = Tracker(**params)

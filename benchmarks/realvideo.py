@@ -341,7 +341,7 @@ def report_header(
     detector_options: dict[str, Any],
 ) -> str:
     """Title, command, the package defaults and the default row against the issue's targets."""
-    from densepeds.pipeline import CNN_DETECTION_DEFAULTS, CNN_TRACKER_DEFAULTS
+    from densepeds.presets import PRESETS
 
     lines = [
         "# The full pipeline on the real videos (package defaults)",
@@ -358,9 +358,7 @@ def report_header(
         "(detections and embeddings are cached under out/cache; tracking goes through "
         "`densepeds.Pipeline`, the code behind `densepeds run`).",
         "",
-        f"Detection preset: `{CNN_DETECTION_DEFAULTS}`",
-        "",
-        f"Tracker preset for CNN detections: `{CNN_TRACKER_DEFAULTS}`",
+        f"Preset: `{PRESETS['yoloseg'].describe()}`",
         "",
     ]
     if params:

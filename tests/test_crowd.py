@@ -76,7 +76,7 @@ def test_shapes_and_dtypes() -> None:
         ({"time_horizon": -1.0}, ParameterError),
         ({"polygon_sides": 2}, ParameterError),
         ({"max_speed": float("inf")}, ParameterError),
-        ({"threads": -1}, OverflowError),
+        ({"threads": -1}, ParameterError),
         ({"threads": 100_000}, ParameterError),
     ],
 )

@@ -246,18 +246,14 @@ def test_cnn_detections_are_filtered_and_det_index_refers_to_the_input() -> None
 
 def test_cnn_preset_applies_only_to_cnn_detections() -> None:
     pytest.importorskip("densepeds.tracking", reason="needs densepeds.tracking (engineer assoc)")
-    from densepeds.pipeline import (
-        CNN_DETECTION_DEFAULTS,
-        CNN_TRACKER_DEFAULTS,
-        DEFAULT_FEATURES,
-        FEATURES,
-        default_features,
-    )
+    from densepeds.pipeline import DEFAULT_FEATURES, FEATURES, default_features
+    from densepeds.presets import PRESETS
     from densepeds.tracking import Tracker
 
     cnn = Pipeline("yoloseg")  # the model is loaded on first use only
-    assert cnn.detection_options == CNN_DETECTION_DEFAULTS
-    for key, value in CNN_TRACKER_DEFAULTS.items():
+    yolo = PRESETS["yoloseg"]
+    assert cnn.preset is yolo and cnn.detection_options == yolo.detection
+    for key, value in yolo.tracker.items():
         assert cnn.tracker.params[key] == value, key
     # The caller's values win over the preset.
     mine = Pipeline("yoloseg", min_score=0.5, n_init=4)

@@ -121,6 +121,8 @@ BAD_INPUTS = {
     "nan box": (np.array([[0, 0, np.nan, 1.0]]), np.ones(1), None),
     "inf box": (np.array([[0, 0, np.inf, 1.0]]), np.ones(1), None),
     "inverted box": (np.array([[5.0, 0, 1, 1]]), np.ones(1), None),
+    # Areas overflow from about 1e154 (accepted and never tracked before).
+    "huge box": (np.array([[0, 0, 1e154, 2e154]]), np.ones(1), None),
     "nan score": (np.array([box(1, 1)]), np.array([np.nan]), None),
     "string boxes": (np.array([["a", "b", "c", "d"]]), np.ones(1), None),
     "embedding rows": (np.array([box(1, 1)]), np.ones(1), np.ones((2, 8), np.float32)),
@@ -136,18 +138,88 @@ def test_bad_input_raises_and_leaves_state_unchanged(case: str) -> None:
     with pytest.raises(InputError):
         t.update(boxes, scores, emb)
     assert t.frame_count == 0
-    # The raw extension raises ValueError (never panics).
+    # The raw extension raises ValueError (InputError is one; it never panics).
     core = _core.Tracker("cv")
     with pytest.raises(ValueError):
         core.update(np.asarray(boxes, np.float64), np.asarray(scores, np.float64), emb)
 
 
-def test_wrong_dtype_in_core_is_value_error() -> None:
+def test_wrong_dtype_in_core_is_input_error() -> None:
     core = _core.Tracker("cv")
-    with pytest.raises(ValueError, match="dtype"):
+    with pytest.raises(InputError, match="dtype"):
         core.update(np.zeros((1, 4), np.int64), np.ones(1))  # type: ignore[arg-type]
-    with pytest.raises(ValueError, match="numpy array"):
+    with pytest.raises(InputError, match="numpy array"):
         core.update([[0, 0, 1, 1]], np.ones(1))  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("which", ["boxes", "scores", "embeddings"])
+def test_complex_arrays_are_refused_not_truncated(which: str) -> None:
+    args: dict[str, object] = {
+        "boxes": np.array([box(1, 1)]),
+        "scores": np.ones(1),
+        "embeddings": np.ones((1, 4), np.float32),
+    }
+    args[which] = np.asarray(args[which]) + 1j
+    t = Tracker("cv")
+    with pytest.raises(InputError, match=f"{which} must hold real numbers"):
+        t.update(**args)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match=f"{which} must be a float32 or float64"):
+        _core.Tracker("cv").update(**args)  # type: ignore[arg-type]
+    assert t.frame_count == 0
+    pts = np.zeros((2, 2))
+    with pytest.raises(InputError, match="axes must be a real-valued"):
+        _core.step_crowd(pts, pts, pts, pts + 1j)
+
+
+def test_boxes_up_to_the_coordinate_limit_are_tracked_as_small_ones() -> None:
+    def ids_and_boxes(scale: float, motion: str) -> tuple[list[int], np.ndarray]:
+        t = Tracker(motion, n_init=1, output_lost=0)
+        base = np.array([box(1.0, 1.0, 0.1, 0.3), box(1.12, 1.0, 0.1, 0.3)])
+        for k in range(5):
+            out = t.update(base * scale * (1 + 1e-3 * k), np.ones(2))
+        return out.ids.tolist(), out.boxes / scale
+
+    for motion in ("cv", "frvo"):
+        small_ids, small = ids_and_boxes(1e3, motion)
+        big_ids, big = ids_and_boxes(7e149, motion)  # 1.15 * 7e149 is within 1e150
+        assert small_ids == big_ids == [1, 2]
+        np.testing.assert_allclose(big, small, rtol=1e-12)
+    with pytest.raises(InputError, match="beyond 1e150"):
+        Tracker("cv").update(np.array([[0, 0, 1e154, 2e154]]), np.ones(1))
+
+
+def test_a_tracker_used_by_two_threads_at_once_says_so() -> None:
+    """One tracker holds one sequence: concurrent use is a clear RuntimeError, never a mix."""
+    import threading
+
+    rng = np.random.default_rng(0)
+    corners = rng.uniform(0, 2000, (1500, 2))
+    boxes = np.hstack([corners, corners + [30, 80]])
+    t = Tracker("frvo", threads=1)
+    errors: list[BaseException] = []
+    updated: list[int] = []
+    start = threading.Barrier(4)
+
+    def worker() -> None:
+        start.wait()
+        for _ in range(10):
+            try:
+                t.update(boxes, np.ones(len(boxes)))
+                updated.append(1)
+                _ = t.params, t.frame_count
+            except Exception as e:  # every failure is checked below
+                errors.append(e)
+
+    threads = [threading.Thread(target=worker) for _ in range(4)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    assert errors, "no overlap happened (the updates are expected to release the GIL)"
+    for e in errors:
+        assert isinstance(e, RuntimeError) and "one Tracker per thread" in str(e), repr(e)
+    # Each update ran whole or not at all: the frame count is the number that succeeded.
+    assert t.frame_count == len(updated)
 
 
 def test_embedding_dimension_must_not_change() -> None:

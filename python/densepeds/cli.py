@@ -9,12 +9,14 @@ from __future__ import annotations
 import argparse
 import sys
 import tempfile
+import textwrap
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
 from densepeds.errors import DensePedsError, ParameterError
 from densepeds.pipeline import DEFAULT_FEATURES, DETECTORS, FEATURES, MOTIONS
+from densepeds.presets import DEFAULT_PRESET, PRESETS
 
 EXIT_USAGE = 2
 COMMANDS = ("run", "eval", "ablate", "scene")
@@ -32,6 +34,8 @@ def _tracker_param(text: str) -> tuple[str, Any]:
     key, sep, raw = text.partition("=")
     if not sep or not key.isidentifier():
         raise argparse.ArgumentTypeError(f"{text!r}: expected KEY=VALUE")
+    if key == "motion":
+        raise argparse.ArgumentTypeError(f"{text!r}: the motion model is set with --motion")
     value: Any = raw
     low = raw.lower()
     if low in ("true", "false"):
@@ -59,6 +63,14 @@ def _csv_choices(allowed: tuple[str, ...]) -> Any:
     return parse
 
 
+def _presets_help() -> str:
+    """The presets, one entry each, for ``run --help``."""
+    lines = ["presets (--param KEY=VALUE overrides a value):"]
+    for p in PRESETS.values():
+        lines += textwrap.wrap(p.describe(), 96, initial_indent="  ", subsequent_indent="      ")
+    return "\n".join(lines)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="densepeds", description="Pedestrian tracking in dense crowds.")
     sub = parser.add_subparsers(dest="command", parser_class=_Parser)
@@ -68,6 +80,8 @@ def build_parser() -> argparse.ArgumentParser:
         help="track a video, image folder or MOTChallenge sequence (no INPUT: the built-in scene)",
         description="Track people. With no INPUT, tracks the built-in dense-crowd scene and "
         "prints its metrics.",
+        epilog=_presets_help(),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     run.add_argument("input", nargs="?", help="video file, image folder or sequence folder")
     run.add_argument("--detections", metavar="FILE", help="MOTChallenge det.txt to track from")
@@ -75,6 +89,12 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--detector-model", metavar="PATH", help="detector ONNX model file")
     run.add_argument("--reid-model", metavar="PATH", help="re-ID ONNX model file")
     run.add_argument("--motion", choices=MOTIONS, default="frvo", help="motion model")
+    run.add_argument(
+        "--preset",
+        choices=PRESETS,
+        help="settings for the detections (listed below); default: the detector's own, "
+        f"{DEFAULT_PRESET} for det files",
+    )
     run.add_argument(
         "--features",
         choices=FEATURES,
@@ -208,7 +228,8 @@ def _summary(name: str, frames: int, n_ids: int, out: Path, pipe: Any, video: Pa
     t = pipe.times
     extra = f" and {video}" if video else ""
     return (
-        f"{name}: {frames} frames, {n_ids} tracks -> {out}{extra}; {t.fps:.1f} fps "
+        f"{name}: {frames} frames, {n_ids} tracks (preset {pipe.preset.name}) -> {out}{extra}; "
+        f"{t.fps:.1f} fps "
         f"({t.breakdown()})"
     )
 
@@ -242,6 +263,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         motion=args.motion,
         features=features,
         detector_model=args.detector_model,
+        preset=args.preset,
         **dict(args.param),
     )
     if detector is not None and dets is None:
@@ -264,7 +286,14 @@ def _run_scene(args: argparse.Namespace) -> int:
     features = args.features or "segmented"
     scene = make_scene(seed=args.seed, frames=args.scene_frames)
     reid: Any = args.reid_model or scene.embedder()
-    pipe = Pipeline(None, reid=reid, motion=args.motion, features=features, **dict(args.param))
+    pipe = Pipeline(
+        None,
+        reid=reid,
+        motion=args.motion,
+        features=features,
+        preset=args.preset,
+        **dict(args.param),
+    )
     with tempfile.TemporaryDirectory(prefix="densepeds-scene-") as tmp:
         seq = scene.write(tmp, images=False)
         out = args.out or Path(tmp) / f"{scene.name}.txt"

@@ -5,8 +5,9 @@ class DensePedsError(Exception):
     """Base class: a problem with the user's input, options or models (not a bug)."""
 
 
-class InputError(DensePedsError):
-    """Unreadable or malformed input: missing file, corrupt video, bad det file, bad frame range."""
+class InputError(DensePedsError, ValueError):
+    """Unreadable or malformed input: missing file, corrupt video, bad det file, bad frame range,
+    or arrays of the wrong shape, dtype or values (a ValueError, as numpy and scipy raise)."""
 
 
 class DetFileError(InputError):

@@ -24,6 +24,7 @@ import numpy.typing as npt
 from densepeds.boxes import box_area, intersections, iou_matrix
 from densepeds.errors import InputError, ParameterError
 from densepeds.frames import check_frame
+from densepeds.presets import Preset, get_preset, preset_for
 from densepeds.segment import FEATURES as CROP_FEATURES
 from densepeds.types import Detections
 from densepeds.video import FrameRange, FrameSource, open_source, parse_frame_range
@@ -55,56 +56,8 @@ FEATURES = (*CROP_FEATURES, "none")
 DEFAULT_FEATURES = "segmented"
 DETECTORS = ("yoloseg", "maskrcnn")
 # Pipeline-level options (the rest of the keyword arguments go to the tracker), applied to the
-# detections of a CNN detector before tracking; a det.txt is tracked as it is.
+# detections before tracking; the presets (densepeds.presets) set them for CNN detectors.
 DETECTION_OPTIONS = ("min_score", "min_height", "nms_iou", "nms_containment", "nms_mask_overlap")
-# One preset for every video tracked from a CNN detector (the shared tiled YOLOv8n-seg + OSNet),
-# chosen on MOT20-01-dev and PETS09-S2L1-dev together (benchmarks/results/realvideo.md); never
-# per video. Tracking from a det.txt keeps the tracker's own defaults.
-CNN_DETECTION_DEFAULTS: dict[str, float] = {
-    # The detector's own floor. Low scores only extend tracks (second pass), never start them.
-    "min_score": 0.15,
-    # Shorter boxes are mostly clutter (signs, bags, parts of people) that OSNet cannot tell
-    # apart: dropping them is the main gain on PETS09; it also drops the 0.4% of MOT20-01's
-    # ground-truth boxes that are smaller (the smallest is 17 px).
-    "min_height": 32,
-    # Tile duplicates: the detector's cross-tile NMS keeps box overlaps up to IoU 0.6, and box
-    # IoU alone cannot separate a duplicate from two people in a crowd (occluder, occluded):
-    # suppress when the masks coincide instead (box IoU > 0.3 and > 60% of the smaller mask on
-    # the other), plus clear box duplicates (IoU > 0.7) and tile-cut parts (90% inside).
-    "nms_iou": 0.7,
-    "nms_containment": 0.9,
-    "nms_mask_overlap": 0.6,
-}
-CNN_TRACKER_DEFAULTS: dict[str, Any] = {
-    # Track birth at score 0.35: the segmenter scores the people of a dense crowd low, so the
-    # 0.6-0.7 of other trackers starts too few tracks; its float copy (the detector's default)
-    # makes few confident false positives (59 boxes >= 0.5 off any person on MOT20-01-dev,
-    # against 223 for the int8 graph), so births this low are safe. Detections >= 0.3 are
-    # matched first; those in [0.15, 0.3) only extend tracks (second pass, IoU >= 0.5).
-    "new_track_threshold": 0.35,
-    "det_threshold": 0.3,
-    "second_pass": True,
-    "low_threshold": 0.15,
-    "low_iou_threshold": 0.5,
-    "low_max_age": 60,
-    "n_init": 2,
-    "max_age": 60,
-    # Appearance (OSNet features) decides first, within one box height, and only
-    # when confident (cosine distance <= 0.25): in a crowd, looser appearance matches swap
-    # identities that the IoU stage would have kept.
-    "appearance_threshold": 0.25,
-    "gallery_size": 100,
-    "gate_radius": 1.0,
-    "iou_threshold": 0.3,
-    # OC-SORT-style recovery re-linked the wrong people in the crowd once appearance is strict.
-    "recovery": False,
-    "recovery_iou_threshold": 0.3,
-    # Box sizes of a tiled detector jitter from frame to frame: smooth them more.
-    "size_smoothing": 0.7,
-    "velocity_smoothing": 0.5,
-    # Coasting tracks are reported for up to 5 frames (occlusions in the crowd are short).
-    "output_lost": 5,
-}
 STAGES = ("decode", "detection", "reid", "tracking", "output")
 Image = npt.NDArray[np.uint8]
 
@@ -238,6 +191,9 @@ class Pipeline:
         a frame is given). Other keyword arguments go to ``densepeds.tracking.Tracker``;
     tracker: instead, any object with ``update(boxes, scores, embeddings) -> Tracks`` and
         ``reset()`` (e.g. another tracker to compare with).
+    preset: a name in ``densepeds.presets.PRESETS`` (default: the detector's own, ``detfile``
+        for detections given or read from a file); the caller's values win over it. ``preset``
+        and ``params`` show what is in use.
     """
 
     def __init__(
@@ -250,6 +206,7 @@ class Pipeline:
         detector_model: str | os.PathLike[str] | None = None,
         detector_options: Mapping[str, Any] | None = None,
         tracker: Any = None,
+        preset: str | None = None,
         **tracker_params: Any,
     ) -> None:
         self.motion = _check_choice("motion", motion, MOTIONS)
@@ -265,11 +222,16 @@ class Pipeline:
         self._reid_spec = reid
         self._reid: Embedder | None = reid if hasattr(reid, "embed") else None  # type: ignore[assignment]
         options = {k: tracker_params.pop(k) for k in DETECTION_OPTIONS if k in tracker_params}
-        if detector is not None:
-            # A CNN detector's boxes: the preset for CNN detections, then the caller's values.
-            options = {**CNN_DETECTION_DEFAULTS, **options}
-            if tracker is None:
-                tracker_params = {**CNN_TRACKER_DEFAULTS, **tracker_params}
+        # The preset (the detector's own unless named), then the caller's values over it.
+        self.preset: Preset = preset_for(detector) if preset is None else get_preset(preset)
+        options = {**self.preset.detection, **options}
+        if isinstance(detector, str) and self.preset.score_floor is not None:
+            self._detector_options = {
+                "score_threshold": self.preset.score_floor,
+                **self._detector_options,
+            }
+        if tracker is None:
+            tracker_params = {**self.preset.tracker, **tracker_params}
         self.detection_options = options
         self.tracker_params = tracker_params
         if tracker is None:
@@ -280,6 +242,19 @@ class Pipeline:
             raise ParameterError("give tracker parameters or a tracker object, not both")
         self.tracker = tracker
         self.times = StageTimes()
+
+    @property
+    def params(self) -> dict[str, Any]:
+        """Every setting in use: the preset's name, the detector's score floor (None: the
+        detections as given), the detection filter and the tracker's parameters."""
+        floor = self._detector_options.get("score_threshold") if self.has_detector else None
+        tracker_params = getattr(self.tracker, "params", {})
+        return {
+            "preset": self.preset.name,
+            "score_floor": floor,
+            **self.detection_options,
+            **dict(tracker_params),
+        }
 
     # --- lazily built models -------------------------------------------------------------------
 

@@ -120,7 +120,13 @@ pub fn dot(a: &[f32], b: &[f32]) -> f32 {
     acc.iter().sum::<f32>() + tail
 }
 
-/// Checks a flat `[x1, y1, x2, y2]*` array: finite, not inverted. Returns the number of boxes.
+/// Largest coordinate magnitude a box may have: squares of coordinates (areas, squared
+/// distances) and their sums then stay finite, so overlaps and distances are computed exactly
+/// enough to track (at 1e154 and beyond, areas overflow to infinity).
+pub const MAX_COORDINATE: f64 = 1e150;
+
+/// Checks a flat `[x1, y1, x2, y2]*` array: finite, within [`MAX_COORDINATE`], not inverted.
+/// Returns the number of boxes.
 pub fn validate_boxes(flat: &[f64]) -> Result<usize, crate::TrackError> {
     use crate::TrackError::InvalidInput;
     if flat.len() % 4 != 0 {
@@ -132,6 +138,11 @@ pub fn validate_boxes(flat: &[f64]) -> Result<usize, crate::TrackError> {
     for (k, b) in flat.chunks_exact(4).enumerate() {
         if b.iter().any(|x| !x.is_finite()) {
             return Err(InvalidInput(format!("box {k} is not finite: {b:?}")));
+        }
+        if b.iter().any(|x| x.abs() > MAX_COORDINATE) {
+            return Err(InvalidInput(format!(
+                "box {k} has a coordinate beyond {MAX_COORDINATE:e} in magnitude: {b:?}"
+            )));
         }
         if b[2] < b[0] || b[3] < b[1] {
             return Err(InvalidInput(format!(

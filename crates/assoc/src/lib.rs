@@ -10,5 +10,5 @@ pub mod tracker;
 
 pub use error::TrackError;
 pub use lap::{linear_sum_assignment, Edge, LapWorkspace, SparseMatcher};
-pub use params::{ParamKind, ParamValue, TrackerParams};
+pub use params::{ParamKind, ParamSpec, ParamValue, Range, TrackerParams, PARAMS};
 pub use tracker::{Embeddings, TrackOutput, Tracker};

@@ -1,107 +1,14 @@
-//! Tracker parameters with documented defaults, validated ranges, and access by name (so the
-//! Python binding can take them as keyword arguments without a second list of names).
+//! Tracker parameters, each declared once in the `tracker_params!` table below: name, type,
+//! default, allowed range and a one-line doc. The struct, its `Default`, the list [`PARAMS`],
+//! access by name ([`TrackerParams::set`], [`TrackerParams::get`]) and validation are all made
+//! from that table, and the Python binding exports it (`densepeds._core.PARAMS`), from which the
+//! Python docs and the type stub are generated (`scripts/gen_params.py`).
+//!
+//! A value outside its range is rejected with [`TrackError::InvalidParameter`]; every value
+//! inside it is used as given (nothing is clamped or replaced further down).
 
 use crate::TrackError;
 use frvo::{MotionKind, MotionParams};
-
-/// Every tunable of the tracker. Units: pixels, frames; scores in [0, 1]. Defaults were tuned
-/// motion-only on the six dev sequences together (never per sequence; benchmarks/results/
-/// tracker.md). The method's pure form (two optimal stages, every detection used, detection
-/// sizes as they come, no lost-track output) is [`TrackerParams::pure`].
-#[derive(Clone, Debug, PartialEq)]
-pub struct TrackerParams {
-    /// Motion model predicting each track's next position (`frvo`, `rvo`, `sf`, `cv`).
-    pub motion: MotionKind,
-    /// Parameters of the motion model (neighbour radius, time horizon, ...).
-    pub motion_params: MotionParams,
-    /// Matches needed before a tentative track is confirmed (gets an id and is reported). 2.
-    pub n_init: u32,
-    /// xi: frames a confirmed track survives without a match before it is deleted. 60.
-    pub max_age: u32,
-    /// lambda: largest cosine distance for an appearance match (stage 1). 0.2.
-    pub appearance_threshold: f64,
-    /// Embeddings remembered per track (oldest out first), summarised in at most 8 rows (means of
-    /// consecutive embeddings); the appearance cost is the smallest distance to a row. 20.
-    pub gallery_size: usize,
-    /// rho, in units of the track's box height: a detection can match a track only when its
-    /// centre is within `gate_radius * height` of the track's predicted centre. `inf` disables. 1.0.
-    pub gate_radius: f64,
-    /// Smallest IoU between a predicted box and a detection for a motion match (stage 2). 0.3.
-    pub iou_threshold: f64,
-    /// Detections scoring below this take no part in stages 1-2 and recovery (they may feed the
-    /// second pass). Scores are expected in [0, 1] (`densepeds.motio.read_detections` maps det
-    /// files into it). 0.3.
-    pub det_threshold: f64,
-    /// Smallest score that starts a new track (and only detections of at least `det_threshold`
-    /// do): low-score detections extend tracks, never start them. 0.3.
-    pub new_track_threshold: f64,
-    /// ByteTrack-style second pass: tracks still unmatched are matched by IoU to detections
-    /// scoring in `[low_threshold, det_threshold)`. On.
-    pub second_pass: bool,
-    /// Lowest score used by the second pass. 0.05.
-    pub low_threshold: f64,
-    /// Smallest IoU for a second-pass match. 0.5.
-    pub low_iou_threshold: f64,
-    /// Tracks unmatched for up to this many frames take part in the second pass (0: only tracks
-    /// matched in the previous frame, ByteTrack's rule). 60 (= `max_age`: every live track):
-    /// lets low-score detections re-find tracks lost for a few frames, which is where a
-    /// sequence with uniformly low scores (ETH-Sunnyday) lost most of its recall.
-    pub low_max_age: u32,
-    /// OC-SORT-style observation-centric recovery: tracks still unmatched are matched by IoU
-    /// between their last observed box and the remaining detections. On by default (tuned on
-    /// the dense dev sequences; `false` gives the method's pure two-stage form).
-    pub recovery: bool,
-    /// Smallest IoU for a recovery match. 0.3.
-    pub recovery_iou_threshold: f64,
-    /// Weight of the newly observed velocity in the velocity average (1 = no smoothing). 0.5.
-    pub velocity_smoothing: f64,
-    /// Frames of matched history the preferred velocity is averaged over. 20.
-    pub pref_window: usize,
-    /// Weight of the previous box size when a match updates it (0 = take the detection's size,
-    /// the method's form). 0.5: halves the jitter of detector box sizes.
-    pub size_smoothing: f64,
-    /// FRVO ellipse: l (extent along the motion, the visible face) = `ellipse_l_scale * box
-    /// height`. 0.15 (a face is about 1/7 of a standing person's height).
-    pub ellipse_l_scale: f64,
-    /// FRVO ellipse: w (extent across the motion) = `ellipse_w_scale * box width`. 0.15: in a
-    /// front view, overlapping boxes are occlusion, not collision, so the ellipses are kept small
-    /// (0.8, the shoulders, measured worse on the dev sequences).
-    pub ellipse_w_scale: f64,
-    /// Confirmed tracks are also reported for this many frames after their last match, at their
-    /// predicted box (`det_index` none); tracks live at most `max_age` frames unmatched, which
-    /// caps it. 5: bridges short misses of the detector with the
-    /// motion model's prediction (more recall and HOTA, some more false positives).
-    pub output_lost: u32,
-}
-
-impl Default for TrackerParams {
-    fn default() -> Self {
-        Self {
-            motion: MotionKind::Frvo,
-            motion_params: MotionParams::default(),
-            n_init: 2,
-            max_age: 60,
-            appearance_threshold: 0.2,
-            gallery_size: 20,
-            gate_radius: 1.0,
-            iou_threshold: 0.3,
-            det_threshold: 0.3,
-            new_track_threshold: 0.3,
-            second_pass: true,
-            low_threshold: 0.05,
-            low_iou_threshold: 0.5,
-            low_max_age: 60,
-            recovery: true,
-            recovery_iou_threshold: 0.3,
-            velocity_smoothing: 0.5,
-            pref_window: 20,
-            size_smoothing: 0.5,
-            ellipse_l_scale: 0.15,
-            ellipse_w_scale: 0.15,
-            output_lost: 5,
-        }
-    }
-}
 
 /// How a parameter's value is typed (for bindings).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -109,56 +16,441 @@ pub enum ParamKind {
     Float,
     Int,
     Bool,
+    /// One of a fixed set of names (see [`Range::Choice`]).
+    Choice,
+}
+
+impl ParamKind {
+    /// The Python type name of a value of this kind.
+    pub fn python_type(self) -> &'static str {
+        match self {
+            Self::Float => "float",
+            Self::Int => "int",
+            Self::Bool => "bool",
+            Self::Choice => "str",
+        }
+    }
 }
 
 /// A parameter value.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum ParamValue {
     Float(f64),
     Int(i64),
     Bool(bool),
+    Choice(String),
 }
 
-/// Names of the numeric/boolean parameters, in a stable order (`motion` is set separately).
-pub const PARAM_NAMES: &[&str] = &[
-    "n_init",
-    "max_age",
-    "appearance_threshold",
-    "gallery_size",
-    "gate_radius",
-    "iou_threshold",
-    "det_threshold",
-    "new_track_threshold",
-    "second_pass",
-    "low_threshold",
-    "low_iou_threshold",
-    "low_max_age",
-    "recovery",
-    "recovery_iou_threshold",
-    "velocity_smoothing",
-    "pref_window",
-    "size_smoothing",
-    "ellipse_l_scale",
-    "ellipse_w_scale",
-    "output_lost",
-    "neighbor_radius",
-    "max_neighbors",
-    "time_horizon",
-    "max_speed",
-    "polygon_sides",
-    "threads",
-];
-
-fn bad(name: &str, why: &str) -> TrackError {
-    TrackError::InvalidParameter(format!("{name} {why}"))
+/// The values a parameter accepts.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Range {
+    /// A number between `lo` and `hi` (`*_open`: the bound itself excluded); never NaN.
+    Float {
+        lo: f64,
+        lo_open: bool,
+        hi: f64,
+        hi_open: bool,
+    },
+    /// An integer in `lo..=hi`.
+    Int { lo: i64, hi: i64 },
+    /// `true` or `false`.
+    Bool,
+    /// One of these names.
+    Choice(&'static [&'static str]),
 }
 
-fn to_u32(name: &str, v: i64) -> Result<u32, TrackError> {
-    u32::try_from(v).map_err(|_| bad(name, &format!("must be a non-negative integer, got {v}")))
+/// `[lo, hi]`.
+const fn closed(lo: f64, hi: f64) -> Range {
+    Range::Float {
+        lo,
+        lo_open: false,
+        hi,
+        hi_open: false,
+    }
 }
 
-fn to_usize(name: &str, v: i64) -> Result<usize, TrackError> {
-    usize::try_from(v).map_err(|_| bad(name, &format!("must be a non-negative integer, got {v}")))
+/// `(lo, hi)`.
+const fn open(lo: f64, hi: f64) -> Range {
+    Range::Float {
+        lo,
+        lo_open: true,
+        hi,
+        hi_open: true,
+    }
+}
+
+/// `(lo, hi]`.
+const fn open_closed(lo: f64, hi: f64) -> Range {
+    Range::Float {
+        lo,
+        lo_open: true,
+        hi,
+        hi_open: false,
+    }
+}
+
+/// `[lo, hi)`.
+const fn closed_open(lo: f64, hi: f64) -> Range {
+    Range::Float {
+        lo,
+        lo_open: false,
+        hi,
+        hi_open: true,
+    }
+}
+
+/// Any number but NaN (`-inf` and `inf` included).
+const ANY: Range = closed(f64::NEG_INFINITY, f64::INFINITY);
+/// A finite number > 0.
+const POSITIVE: Range = open(0.0, f64::INFINITY);
+/// A probability-like value in [0, 1].
+const UNIT: Range = closed(0.0, 1.0);
+
+/// An integer in `lo..=hi` (`hi` is a `usize` or `u32` bound, kept within `i64`).
+const fn ints(lo: i64, hi: u64) -> Range {
+    Range::Int {
+        lo,
+        hi: if hi > i64::MAX as u64 {
+            i64::MAX
+        } else {
+            hi as i64
+        },
+    }
+}
+
+const U32_MAX: u64 = u32::MAX as u64;
+const USIZE_MAX: u64 = usize::MAX as u64;
+
+/// The motion models, by the names `MotionKind` parses.
+pub const MOTION_NAMES: &[&str] = &["frvo", "rvo", "sf", "cv"];
+
+/// Largest `max_speed` (pixels per frame) the motion models work with.
+pub const MAX_SPEED: f64 = 1e9;
+
+fn fmt_bound(v: f64) -> String {
+    if v == f64::INFINITY {
+        "inf".into()
+    } else if v == f64::NEG_INFINITY {
+        "-inf".into()
+    } else {
+        format!("{v}")
+    }
+}
+
+impl Range {
+    /// The range as users read it: `[0, 1]`, `(0, inf)`, `1..=4294967295`, `frvo|rvo|sf|cv`.
+    pub fn describe(&self) -> String {
+        match *self {
+            Range::Float {
+                lo,
+                lo_open,
+                hi,
+                hi_open,
+            } => format!(
+                "{}{}, {}{}",
+                if lo_open { "(" } else { "[" },
+                fmt_bound(lo),
+                fmt_bound(hi),
+                if hi_open { ")" } else { "]" }
+            ),
+            Range::Int { lo, hi } if hi == i64::MAX => format!(">= {lo}"),
+            Range::Int { lo, hi } => format!("{lo}..={hi}"),
+            Range::Bool => "True|False".into(),
+            Range::Choice(names) => names.join("|"),
+        }
+    }
+
+    /// Whether `v` lies in the range (a value of another kind never does).
+    pub fn contains(&self, v: &ParamValue) -> bool {
+        match (*self, v) {
+            (
+                Range::Float {
+                    lo,
+                    lo_open,
+                    hi,
+                    hi_open,
+                },
+                ParamValue::Float(x),
+            ) => {
+                let x = *x;
+                !x.is_nan()
+                    && (if lo_open { x > lo } else { x >= lo })
+                    && (if hi_open { x < hi } else { x <= hi })
+            }
+            (Range::Int { lo, hi }, ParamValue::Int(i)) => (lo..=hi).contains(i),
+            (Range::Bool, ParamValue::Bool(_)) => true,
+            (Range::Choice(names), ParamValue::Choice(s)) => names.contains(&s.as_str()),
+            _ => false,
+        }
+    }
+}
+
+/// One row of the parameter table.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ParamSpec {
+    pub name: &'static str,
+    pub kind: ParamKind,
+    pub range: Range,
+    /// One line for users (units, meaning).
+    pub doc: &'static str,
+}
+
+/// A field type the table can hold, converted to and from [`ParamValue`].
+trait Field: Sized {
+    const KIND: ParamKind;
+    fn to_value(&self) -> ParamValue;
+    /// The field's value, or `None` when `v` is not of this kind (or out of the type's range).
+    fn from_value(v: &ParamValue) -> Option<Self>;
+}
+
+impl Field for f64 {
+    const KIND: ParamKind = ParamKind::Float;
+    fn to_value(&self) -> ParamValue {
+        ParamValue::Float(*self)
+    }
+    fn from_value(v: &ParamValue) -> Option<Self> {
+        match *v {
+            ParamValue::Float(f) => Some(f),
+            _ => None,
+        }
+    }
+}
+
+impl Field for u32 {
+    const KIND: ParamKind = ParamKind::Int;
+    fn to_value(&self) -> ParamValue {
+        ParamValue::Int((*self).into())
+    }
+    fn from_value(v: &ParamValue) -> Option<Self> {
+        match *v {
+            ParamValue::Int(i) => i.try_into().ok(),
+            _ => None,
+        }
+    }
+}
+
+impl Field for usize {
+    const KIND: ParamKind = ParamKind::Int;
+    fn to_value(&self) -> ParamValue {
+        ParamValue::Int(i64::try_from(*self).unwrap_or(i64::MAX))
+    }
+    fn from_value(v: &ParamValue) -> Option<Self> {
+        match *v {
+            ParamValue::Int(i) => i.try_into().ok(),
+            _ => None,
+        }
+    }
+}
+
+impl Field for bool {
+    const KIND: ParamKind = ParamKind::Bool;
+    fn to_value(&self) -> ParamValue {
+        ParamValue::Bool(*self)
+    }
+    fn from_value(v: &ParamValue) -> Option<Self> {
+        match *v {
+            ParamValue::Bool(b) => Some(b),
+            _ => None,
+        }
+    }
+}
+
+impl Field for MotionKind {
+    const KIND: ParamKind = ParamKind::Choice;
+    fn to_value(&self) -> ParamValue {
+        ParamValue::Choice(motion_name(*self).into())
+    }
+    fn from_value(v: &ParamValue) -> Option<Self> {
+        match v {
+            ParamValue::Choice(s) => s.parse().ok(),
+            _ => None,
+        }
+    }
+}
+
+/// The name a motion model is chosen by (one of [`MOTION_NAMES`]).
+pub fn motion_name(kind: MotionKind) -> &'static str {
+    match kind {
+        MotionKind::Frvo => "frvo",
+        MotionKind::Rvo => "rvo",
+        MotionKind::SocialForce => "sf",
+        MotionKind::ConstantVelocity => "cv",
+    }
+}
+
+fn invalid(name: &str, range: &Range, v: &ParamValue) -> TrackError {
+    let got = match v {
+        ParamValue::Float(f) => fmt_bound(*f),
+        ParamValue::Int(i) => i.to_string(),
+        ParamValue::Bool(b) => if *b { "True" } else { "False" }.into(),
+        ParamValue::Choice(s) => format!("{s:?}"),
+    };
+    TrackError::InvalidParameter(format!(
+        "{name} must be {} in {}, got {got}",
+        match range {
+            Range::Float { .. } => "a number",
+            Range::Int { .. } => "an integer",
+            Range::Bool => "a bool",
+            Range::Choice(_) => "a name",
+        },
+        range.describe()
+    ))
+}
+
+/// `v` checked against the row's range, as the row's kind (an integer for a float is accepted).
+fn checked(spec: &ParamSpec, v: ParamValue) -> Result<ParamValue, TrackError> {
+    let v = match (spec.kind, v) {
+        (ParamKind::Float, ParamValue::Int(i)) => ParamValue::Float(i as f64),
+        (_, v) => v,
+    };
+    if spec.range.contains(&v) {
+        Ok(v)
+    } else {
+        Err(invalid(spec.name, &spec.range, &v))
+    }
+}
+
+/// Builds [`TrackerParams`] and everything made from its table. `own` rows are fields of
+/// `TrackerParams` (`name: type = default, range, doc`); `motion` rows are the fields of
+/// [`frvo::MotionParams`] (held in `motion_params`, defaults from `MotionParams::default()`).
+macro_rules! tracker_params {
+    (
+        own { $( $name:ident : $ty:ty = $default:expr, $range:expr, $doc:literal; )* }
+        motion { $( $mname:ident : $mty:ty, $mrange:expr, $mdoc:literal; )* }
+    ) => {
+        /// Every tunable of the tracker. Units: pixels, frames; scores in [0, 1]. The tracker's
+        /// defaults were tuned motion-only on the six dev sequences together (never per sequence;
+        /// benchmarks/results/tracker.md). The method's pure form is [`TrackerParams::pure`].
+        #[derive(Clone, Debug, PartialEq)]
+        pub struct TrackerParams {
+            $( #[doc = $doc] pub $name: $ty, )*
+            /// The motion model's parameters (the `motion` rows of the table).
+            pub motion_params: MotionParams,
+        }
+
+        impl Default for TrackerParams {
+            fn default() -> Self {
+                Self { $( $name: $default, )* motion_params: MotionParams::default() }
+            }
+        }
+
+        /// Every parameter, in a stable order: the tracker's own, then the motion model's.
+        pub const PARAMS: &[ParamSpec] = &[
+            $( ParamSpec {
+                name: stringify!($name), kind: <$ty as Field>::KIND, range: $range, doc: $doc
+            }, )*
+            $( ParamSpec {
+                name: stringify!($mname), kind: <$mty as Field>::KIND, range: $mrange, doc: $mdoc
+            }, )*
+        ];
+
+        /// Number of `own` rows at the start of [`PARAMS`]; the rest are the motion model's.
+        const OWN_PARAMS: usize = [$( stringify!($name), )*].len();
+
+        impl TrackerParams {
+            /// The named parameter's current value, or `None` for an unknown name.
+            pub fn get(&self, name: &str) -> Option<ParamValue> {
+                $( if name == stringify!($name) { return Some(self.$name.to_value()); } )*
+                $( if name == stringify!($mname) {
+                    return Some(<$mty as Field>::to_value(&self.motion_params.$mname));
+                } )*
+                None
+            }
+
+            /// Stores an already range-checked value.
+            fn store(&mut self, name: &str, v: &ParamValue) -> Option<()> {
+                $( if name == stringify!($name) {
+                    self.$name = <$ty as Field>::from_value(v)?;
+                    return Some(());
+                } )*
+                $( if name == stringify!($mname) {
+                    self.motion_params.$mname = <$mty as Field>::from_value(v)?;
+                    return Some(());
+                } )*
+                None
+            }
+        }
+    };
+}
+
+tracker_params! {
+    own {
+        motion: MotionKind = MotionKind::Frvo, Range::Choice(MOTION_NAMES),
+            "motion model predicting each track's next position";
+        n_init: u32 = 2, ints(1, U32_MAX),
+            "matches before a track is confirmed (gets an id and is reported)";
+        max_age: u32 = 60, ints(0, U32_MAX),
+            "xi: frames a confirmed track survives unmatched before it is deleted";
+        appearance_threshold: f64 = 0.2, closed(0.0, 2.0),
+            "lambda: largest cosine distance for an appearance match (stage 1)";
+        gallery_size: usize = 20, ints(1, USIZE_MAX),
+            "embeddings remembered per track, summarised in at most 8 rows (means of consecutive ones); the appearance cost is the smallest distance to a row";
+        gate_radius: f64 = 1.0, open_closed(0.0, f64::INFINITY),
+            "rho: a detection matches a track only within this many track box heights (inf: off)";
+        iou_threshold: f64 = 0.3, UNIT,
+            "smallest IoU between a predicted box and a detection for a motion match (stage 2)";
+        det_threshold: f64 = 0.3, ANY,
+            "detections scoring below this take no part in stages 1-2 and recovery";
+        new_track_threshold: f64 = 0.3, ANY,
+            "smallest score that starts a track (only detections >= det_threshold start one)";
+        second_pass: bool = true, Range::Bool,
+            "ByteTrack-style pass: unmatched tracks vs detections in [low_threshold, det_threshold)";
+        low_threshold: f64 = 0.05, ANY,
+            "lowest score used by the second pass";
+        low_iou_threshold: f64 = 0.5, UNIT,
+            "smallest IoU for a second-pass match";
+        low_max_age: u32 = 60, ints(0, U32_MAX),
+            "tracks unmatched up to this many frames join the second pass (0: ByteTrack's rule)";
+        recovery: bool = true, Range::Bool,
+            "OC-SORT-style re-match of unmatched tracks by IoU of their last observed box";
+        recovery_iou_threshold: f64 = 0.3, UNIT,
+            "smallest IoU for a recovery match";
+        velocity_smoothing: f64 = 0.5, UNIT,
+            "weight of the newly observed velocity in the velocity average (1: no smoothing)";
+        pref_window: usize = 20, ints(1, USIZE_MAX),
+            "frames of matched history the preferred velocity is averaged over";
+        size_smoothing: f64 = 0.5, closed_open(0.0, 1.0),
+            "weight of the previous box size when a match updates it (0: the detection's size)";
+        ellipse_l_scale: f64 = 0.15, POSITIVE,
+            "FRVO ellipse extent along the motion (the face) = scale * box height";
+        ellipse_w_scale: f64 = 0.15, POSITIVE,
+            "FRVO ellipse extent across the motion = scale * box width (small: overlap is occlusion)";
+        output_lost: u32 = 5, ints(0, U32_MAX),
+            "confirmed tracks are also reported, at their prediction, this many frames unmatched";
+    }
+    motion {
+        neighbor_radius: f64, POSITIVE,
+            "motion model: only agents closer than this (pixels) constrain each other";
+        max_neighbors: usize, ints(1, USIZE_MAX),
+            "motion model: at most this many neighbours (nearest first) constrain an agent";
+        time_horizon: f64, POSITIVE,
+            "motion model: time horizon tau of the velocity obstacles, frames";
+        max_speed: f64, open_closed(0.0, MAX_SPEED),
+            "motion model: largest speed, pixels per frame";
+        polygon_sides: usize, ints(3, frvo::geometry::MAX_SIDES as u64),
+            "FRVO: sides of the polygon approximating each ellipse";
+        sf_relaxation_time: f64, POSITIVE,
+            "social forces: relaxation time toward the preferred velocity, frames";
+        sf_strength: f64, closed_open(0.0, f64::INFINITY),
+            "social forces: repulsion strength at contact, pixels per frame squared";
+        sf_range: f64, POSITIVE,
+            "social forces: repulsion range, pixels";
+        threads: usize, ints(0, frvo::model::MAX_THREADS as u64),
+            "threads for a crowd step (0: every core, from 300 agent-neighbour pairs; 1: caller's)";
+    }
+}
+
+/// The row of the named parameter.
+pub fn spec(name: &str) -> Option<&'static ParamSpec> {
+    PARAMS.iter().find(|p| p.name == name)
+}
+
+fn unknown(name: &str) -> TrackError {
+    let known: Vec<&str> = PARAMS.iter().map(|p| p.name).collect();
+    TrackError::InvalidParameter(format!(
+        "unknown parameter {name:?}; known: {}",
+        known.join(", ")
+    ))
 }
 
 impl TrackerParams {
@@ -181,180 +473,200 @@ impl TrackerParams {
 
     /// The type of the named parameter, or `None` for an unknown name.
     pub fn kind_of(name: &str) -> Option<ParamKind> {
-        Some(match name {
-            "n_init" | "max_age" | "gallery_size" | "pref_window" | "output_lost"
-            | "low_max_age" | "max_neighbors" | "polygon_sides" | "threads" => ParamKind::Int,
-            "second_pass" | "recovery" => ParamKind::Bool,
-            n if PARAM_NAMES.contains(&n) => ParamKind::Float,
-            _ => return None,
-        })
+        spec(name).map(|s| s.kind)
     }
 
-    /// Sets one parameter by name. Values are range-checked by [`TrackerParams::validate`].
+    /// Sets one parameter by name; an unknown name, a value of the wrong kind or one outside
+    /// the parameter's range is an error naming the range (and changes nothing).
     pub fn set(&mut self, name: &str, value: ParamValue) -> Result<(), TrackError> {
-        let kind = Self::kind_of(name).ok_or_else(|| {
-            TrackError::InvalidParameter(format!(
-                "unknown parameter {name:?}; known: motion, {}",
-                PARAM_NAMES.join(", ")
-            ))
-        })?;
-        let f = match value {
-            ParamValue::Float(f) => f,
-            ParamValue::Int(i) => i as f64,
-            ParamValue::Bool(b) => f64::from(u8::from(b)),
-        };
-        let i = match (kind, value) {
-            (ParamKind::Int, ParamValue::Int(i)) => i,
-            (ParamKind::Int, _) => return Err(bad(name, "must be an integer")),
-            (ParamKind::Bool, ParamValue::Bool(b)) => i64::from(b),
-            (ParamKind::Bool, _) => return Err(bad(name, "must be a boolean")),
-            (ParamKind::Float, ParamValue::Bool(_)) => return Err(bad(name, "must be a number")),
-            _ => 0,
-        };
-        let p = self;
-        match name {
-            "n_init" => p.n_init = to_u32(name, i)?,
-            "max_age" => p.max_age = to_u32(name, i)?,
-            "appearance_threshold" => p.appearance_threshold = f,
-            "gallery_size" => p.gallery_size = to_usize(name, i)?,
-            "gate_radius" => p.gate_radius = f,
-            "iou_threshold" => p.iou_threshold = f,
-            "det_threshold" => p.det_threshold = f,
-            "new_track_threshold" => p.new_track_threshold = f,
-            "second_pass" => p.second_pass = i != 0,
-            "low_threshold" => p.low_threshold = f,
-            "low_iou_threshold" => p.low_iou_threshold = f,
-            "low_max_age" => p.low_max_age = to_u32(name, i)?,
-            "recovery" => p.recovery = i != 0,
-            "recovery_iou_threshold" => p.recovery_iou_threshold = f,
-            "velocity_smoothing" => p.velocity_smoothing = f,
-            "pref_window" => p.pref_window = to_usize(name, i)?,
-            "size_smoothing" => p.size_smoothing = f,
-            "ellipse_l_scale" => p.ellipse_l_scale = f,
-            "ellipse_w_scale" => p.ellipse_w_scale = f,
-            "output_lost" => p.output_lost = to_u32(name, i)?,
-            "neighbor_radius" => p.motion_params.neighbor_radius = f,
-            "max_neighbors" => p.motion_params.max_neighbors = to_usize(name, i)?,
-            "time_horizon" => p.motion_params.time_horizon = f,
-            "max_speed" => p.motion_params.max_speed = f,
-            "polygon_sides" => p.motion_params.polygon_sides = to_usize(name, i)?,
-            "threads" => p.motion_params.threads = to_usize(name, i)?,
-            _ => unreachable!("kind_of accepted {name}"),
-        }
-        Ok(())
+        let spec = spec(name).ok_or_else(|| unknown(name))?;
+        let v = checked(spec, value)?;
+        self.store(name, &v)
+            .ok_or_else(|| invalid(name, &spec.range, &v))
     }
 
-    /// The named parameter's current value.
-    pub fn get(&self, name: &str) -> Option<ParamValue> {
-        use ParamValue::{Bool, Float, Int};
-        let p = self;
-        Some(match name {
-            "n_init" => Int(p.n_init.into()),
-            "max_age" => Int(p.max_age.into()),
-            "appearance_threshold" => Float(p.appearance_threshold),
-            "gallery_size" => Int(p.gallery_size as i64),
-            "gate_radius" => Float(p.gate_radius),
-            "iou_threshold" => Float(p.iou_threshold),
-            "det_threshold" => Float(p.det_threshold),
-            "new_track_threshold" => Float(p.new_track_threshold),
-            "second_pass" => Bool(p.second_pass),
-            "low_threshold" => Float(p.low_threshold),
-            "low_iou_threshold" => Float(p.low_iou_threshold),
-            "low_max_age" => Int(p.low_max_age.into()),
-            "recovery" => Bool(p.recovery),
-            "recovery_iou_threshold" => Float(p.recovery_iou_threshold),
-            "velocity_smoothing" => Float(p.velocity_smoothing),
-            "pref_window" => Int(p.pref_window as i64),
-            "size_smoothing" => Float(p.size_smoothing),
-            "ellipse_l_scale" => Float(p.ellipse_l_scale),
-            "ellipse_w_scale" => Float(p.ellipse_w_scale),
-            "output_lost" => Int(p.output_lost.into()),
-            "neighbor_radius" => Float(p.motion_params.neighbor_radius),
-            "max_neighbors" => Int(p.motion_params.max_neighbors as i64),
-            "time_horizon" => Float(p.motion_params.time_horizon),
-            "max_speed" => Float(p.motion_params.max_speed),
-            "polygon_sides" => Int(p.motion_params.polygon_sides as i64),
-            "threads" => Int(p.motion_params.threads as i64),
-            _ => return None,
-        })
-    }
-
-    /// Checks every range; the error names the parameter and its allowed range.
+    /// Checks every value against its range; the error names the parameter and its range.
     pub fn validate(&self) -> Result<(), TrackError> {
-        let p = self;
-        let unit = |name: &str, v: f64| {
-            if (0.0..=1.0).contains(&v) {
-                Ok(())
-            } else {
-                Err(bad(name, &format!("must be in [0, 1], got {v}")))
-            }
-        };
-        let positive = |name: &str, v: f64| {
-            if v > 0.0 && !v.is_nan() {
-                Ok(())
-            } else {
-                Err(bad(name, &format!("must be > 0, got {v}")))
-            }
-        };
-        let not_nan = |name: &str, v: f64| {
-            if v.is_nan() {
-                Err(bad(name, "must not be NaN"))
-            } else {
-                Ok(())
-            }
-        };
-        if p.n_init < 1 {
-            return Err(bad("n_init", "must be >= 1"));
-        }
-        if p.gallery_size < 1 {
-            return Err(bad("gallery_size", "must be >= 1"));
-        }
-        if p.pref_window < 1 {
-            return Err(bad("pref_window", "must be >= 1"));
-        }
-        if !(0.0..=2.0).contains(&p.appearance_threshold) {
-            return Err(bad(
-                "appearance_threshold",
-                &format!("must be in [0, 2], got {}", p.appearance_threshold),
-            ));
-        }
-        positive("gate_radius", p.gate_radius)?;
-        unit("iou_threshold", p.iou_threshold)?;
-        unit("low_iou_threshold", p.low_iou_threshold)?;
-        unit("recovery_iou_threshold", p.recovery_iou_threshold)?;
-        unit("velocity_smoothing", p.velocity_smoothing)?;
-        if !(0.0..1.0).contains(&p.size_smoothing) {
-            return Err(bad(
-                "size_smoothing",
-                &format!("must be in [0, 1), got {}", p.size_smoothing),
-            ));
-        }
-        not_nan("det_threshold", p.det_threshold)?;
-        not_nan("new_track_threshold", p.new_track_threshold)?;
-        not_nan("low_threshold", p.low_threshold)?;
-        positive("ellipse_l_scale", p.ellipse_l_scale)?;
-        positive("ellipse_w_scale", p.ellipse_w_scale)?;
-        if !p.ellipse_l_scale.is_finite() || !p.ellipse_w_scale.is_finite() {
-            return Err(bad("ellipse_l_scale/ellipse_w_scale", "must be finite"));
-        }
-        let m = &p.motion_params;
-        positive("neighbor_radius", m.neighbor_radius)?;
-        positive("time_horizon", m.time_horizon)?;
-        positive("max_speed", m.max_speed)?;
-        if m.max_neighbors < 1 {
-            return Err(bad("max_neighbors", "must be >= 1"));
-        }
-        if m.polygon_sides < 3 {
-            return Err(bad("polygon_sides", "must be >= 3"));
-        }
-        if m.threads > frvo::model::MAX_THREADS {
-            let why = format!(
-                "must be in 0..={} (0: every core), got {}",
-                frvo::model::MAX_THREADS,
-                m.threads
-            );
-            return Err(bad("threads", &why));
+        for spec in PARAMS {
+            let v = self.get(spec.name).expect("every row has a field");
+            checked(spec, v)?;
         }
         Ok(())
+    }
+
+    /// Checks a motion model's parameters against the `motion` rows of the table (for callers
+    /// that step a crowd without a tracker).
+    pub fn validate_motion(m: &MotionParams) -> Result<(), TrackError> {
+        let p = Self {
+            motion_params: *m,
+            ..Self::default()
+        };
+        for spec in &PARAMS[OWN_PARAMS..] {
+            checked(spec, p.get(spec.name).expect("every row has a field"))?;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Values just outside a row's range (none for a bool), and its bounds that are inside it.
+    fn probes(range: &Range) -> (Vec<ParamValue>, Vec<ParamValue>) {
+        use ParamValue::{Float, Int};
+        let step = |x: f64, up: bool| {
+            if x.is_infinite() {
+                x
+            } else if up {
+                x + x.abs().max(1.0) * 1e-9
+            } else {
+                x - x.abs().max(1.0) * 1e-9
+            }
+        };
+        match *range {
+            Range::Float {
+                lo,
+                lo_open,
+                hi,
+                hi_open,
+            } => {
+                let mut outside = vec![Float(f64::NAN)];
+                let mut inside = vec![];
+                if lo_open {
+                    outside.push(Float(lo));
+                    inside.push(Float(step(lo, true)));
+                } else if lo.is_finite() {
+                    outside.push(Float(step(lo, false)));
+                    inside.push(Float(lo));
+                } else {
+                    inside.push(Float(lo));
+                }
+                if hi_open {
+                    outside.push(Float(hi));
+                    inside.push(Float(if hi.is_infinite() {
+                        1e300
+                    } else {
+                        step(hi, false)
+                    }));
+                } else if hi.is_finite() {
+                    outside.push(Float(step(hi, true)));
+                    inside.push(Float(hi));
+                } else {
+                    inside.push(Float(hi));
+                }
+                (outside, inside)
+            }
+            Range::Int { lo, hi } => {
+                let mut outside = vec![Int(lo - 1)];
+                if hi < i64::MAX {
+                    outside.push(Int(hi + 1));
+                }
+                (outside, vec![Int(lo), Int(hi)])
+            }
+            Range::Bool => (
+                vec![],
+                vec![ParamValue::Bool(false), ParamValue::Bool(true)],
+            ),
+            Range::Choice(names) => (
+                vec![ParamValue::Choice("nope".into())],
+                names
+                    .iter()
+                    .map(|n| ParamValue::Choice((*n).into()))
+                    .collect(),
+            ),
+        }
+    }
+
+    #[test]
+    fn every_row_has_a_field_a_valid_default_and_a_doc() {
+        let d = TrackerParams::default();
+        d.validate().unwrap();
+        let mut names: Vec<&str> = PARAMS.iter().map(|p| p.name).collect();
+        names.sort_unstable();
+        names.dedup();
+        assert_eq!(names.len(), PARAMS.len(), "a name declared twice");
+        for spec in PARAMS {
+            let v = d.get(spec.name).unwrap();
+            assert!(spec.range.contains(&v), "{}: default {v:?}", spec.name);
+            assert!(!spec.doc.is_empty() && !spec.doc.contains('\n'));
+            assert_eq!(TrackerParams::kind_of(spec.name), Some(spec.kind));
+        }
+        assert_eq!(d.get("nope"), None);
+        assert_eq!(d.motion_params, MotionParams::default());
+    }
+
+    #[test]
+    fn values_outside_a_range_are_rejected_and_change_nothing() {
+        for spec in PARAMS {
+            let (outside, inside) = probes(&spec.range);
+            for v in outside {
+                let mut p = TrackerParams::default();
+                let err = p.set(spec.name, v.clone()).unwrap_err();
+                assert!(
+                    matches!(&err, TrackError::InvalidParameter(m) if m.starts_with(spec.name)),
+                    "{}: {err}",
+                    spec.name
+                );
+                assert_eq!(p, TrackerParams::default(), "{} = {v:?}", spec.name);
+            }
+            for v in inside {
+                let mut p = TrackerParams::default();
+                p.set(spec.name, v.clone()).unwrap();
+                assert_eq!(p.get(spec.name), Some(v), "{}", spec.name);
+                p.validate().unwrap();
+            }
+        }
+    }
+
+    /// Every motion value the table accepts reaches the motion model as given: the model's own
+    /// check accepts it and its sanitising leaves it unchanged (nothing silently replaced).
+    #[test]
+    fn motion_values_in_range_are_used_as_given() {
+        for spec in &PARAMS[OWN_PARAMS..] {
+            for v in probes(&spec.range).1 {
+                let mut p = TrackerParams::default();
+                p.set(spec.name, v.clone()).unwrap();
+                let m = p.motion_params;
+                assert_eq!(m.validate(), Ok(()), "{} = {v:?}", spec.name);
+                assert_eq!(m.sanitized(), m, "{} = {v:?}", spec.name);
+                TrackerParams::validate_motion(&m).unwrap();
+            }
+        }
+    }
+
+    #[test]
+    fn values_the_motion_model_would_replace_are_rejected() {
+        use ParamValue::{Float, Int};
+        for (name, v) in [
+            ("time_horizon", Float(f64::INFINITY)),
+            ("max_speed", Float(f64::INFINITY)),
+            ("max_speed", Float(2e9)),
+            ("polygon_sides", Int(1000)),
+            ("neighbor_radius", Float(f64::INFINITY)),
+            ("threads", Int(-1)),
+        ] {
+            let mut p = TrackerParams::default();
+            assert!(p.set(name, v.clone()).is_err(), "{name} = {v:?}");
+        }
+        let m = MotionParams {
+            time_horizon: f64::INFINITY,
+            ..MotionParams::default()
+        };
+        assert!(TrackerParams::validate_motion(&m).is_err());
+    }
+
+    #[test]
+    fn kinds_are_checked() {
+        let mut p = TrackerParams::default();
+        assert!(p.set("n_init", ParamValue::Float(2.0)).is_err());
+        assert!(p.set("recovery", ParamValue::Int(1)).is_err());
+        assert!(p.set("iou_threshold", ParamValue::Bool(true)).is_err());
+        p.set("iou_threshold", ParamValue::Int(1)).unwrap();
+        assert_eq!(p.iou_threshold, 1.0);
+        p.set("motion", ParamValue::Choice("cv".into())).unwrap();
+        assert_eq!(p.motion, MotionKind::ConstantVelocity);
+        let err = p.set("nope", ParamValue::Int(1)).unwrap_err().to_string();
+        assert!(err.contains("known: motion, n_init"), "{err}");
     }
 }

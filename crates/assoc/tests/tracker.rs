@@ -342,8 +342,8 @@ fn parameters_are_validated_and_settable_by_name() {
     assert_eq!(p.get("recovery"), Some(ParamValue::Bool(true)));
     assert_eq!(p.get("iou_threshold"), Some(ParamValue::Float(0.0)));
     assert_eq!(p.motion_params.neighbor_radius, 80.0);
-    for name in assoc::params::PARAM_NAMES {
-        let v = p.get(name).unwrap();
-        p.set(name, v).unwrap();
+    for spec in assoc::PARAMS {
+        let v = p.get(spec.name).unwrap();
+        p.set(spec.name, v).unwrap();
     }
 }

@@ -3,26 +3,17 @@
 //! `step_crowd` reads four [N, 2] arrays (converted once to contiguous float64), runs one step of
 //! the chosen model with the GIL released, and returns new velocities and positions.
 
-use frvo::{make_model, Agent, MotionKind, MotionParams};
+use assoc::{ParamValue, TrackerParams};
+use frvo::{make_model, Agent};
 use nalgebra::Vector2;
 use numpy::ndarray::Array2;
 use numpy::{PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
-use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
-/// `densepeds.errors.ParameterError` (a ValueError), or ValueError if that cannot be imported.
-fn parameter_error(py: Python<'_>, msg: String) -> PyErr {
-    match py
-        .import("densepeds.errors")
-        .and_then(|m| m.getattr("ParameterError"))
-        .and_then(|cls| cls.call1((msg.clone(),)))
-    {
-        Ok(exc) => PyErr::from_value(exc),
-        Err(_) => PyValueError::new_err(msg),
-    }
-}
+use crate::errors::{input_error, parameter_error, track_error};
+use crate::tracker::param_value;
 
-/// `obj` as a C-contiguous float64 [N, 2] array, or ValueError naming the argument.
+/// `obj` as a C-contiguous float64 [N, 2] array (real numbers only), or InputError naming it.
 fn as_points<'py>(
     py: Python<'py>,
     obj: &Bound<'py, PyAny>,
@@ -30,15 +21,25 @@ fn as_points<'py>(
 ) -> PyResult<PyReadonlyArray2<'py, f64>> {
     let np = py.import("numpy")?;
     let arr = np
-        .call_method1("ascontiguousarray", (obj, "float64"))
-        .map_err(|e| PyValueError::new_err(format!("{name} must be a float array [N, 2]: {e}")))?;
+        .call_method1("asarray", (obj,))
+        .map_err(|e| input_error(format!("{name} must be a float array [N, 2]: {e}")))?;
+    let dtype_kind: String = arr.getattr("dtype")?.getattr("kind")?.extract()?;
+    if !"biuf".contains(dtype_kind.as_str()) {
+        return Err(input_error(format!(
+            "{name} must be a real-valued array [N, 2], got dtype {}",
+            arr.getattr("dtype")?
+        )));
+    }
+    let arr = np
+        .call_method1("ascontiguousarray", (arr, "float64"))
+        .map_err(|e| input_error(format!("{name} must be a float array [N, 2]: {e}")))?;
     let Ok(arr) = arr.cast_into::<PyArray2<f64>>() else {
-        return Err(PyValueError::new_err(format!(
+        return Err(input_error(format!(
             "{name} must be a 2-D array of shape [N, 2]"
         )));
     };
     if arr.shape()[1] != 2 {
-        return Err(PyValueError::new_err(format!(
+        return Err(input_error(format!(
             "{name} must have shape [N, 2], got {:?}",
             arr.shape()
         )));
@@ -67,36 +68,43 @@ fn step_crowd<'py>(
     axes: &Bound<'py, PyAny>,
     motion: &str,
     dt: f64,
-    neighbor_radius: Option<f64>,
-    max_neighbors: Option<usize>,
-    time_horizon: Option<f64>,
-    max_speed: Option<f64>,
-    polygon_sides: Option<usize>,
-    sf_relaxation_time: Option<f64>,
-    sf_strength: Option<f64>,
-    sf_range: Option<f64>,
-    threads: Option<usize>,
+    neighbor_radius: Option<&Bound<'py, PyAny>>,
+    max_neighbors: Option<&Bound<'py, PyAny>>,
+    time_horizon: Option<&Bound<'py, PyAny>>,
+    max_speed: Option<&Bound<'py, PyAny>>,
+    polygon_sides: Option<&Bound<'py, PyAny>>,
+    sf_relaxation_time: Option<&Bound<'py, PyAny>>,
+    sf_strength: Option<&Bound<'py, PyAny>>,
+    sf_range: Option<&Bound<'py, PyAny>>,
+    threads: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<(Points<'py>, Points<'py>)> {
-    let kind: MotionKind = motion.parse().map_err(|e| parameter_error(py, e))?;
     if !(dt.is_finite() && dt > 0.0) {
-        return Err(parameter_error(
-            py,
-            format!("dt must be finite and > 0, got {dt}"),
-        ));
+        return Err(parameter_error(format!(
+            "dt must be finite and > 0, got {dt}"
+        )));
     }
-    let d = MotionParams::default();
-    let params = MotionParams {
-        neighbor_radius: neighbor_radius.unwrap_or(d.neighbor_radius),
-        max_neighbors: max_neighbors.unwrap_or(d.max_neighbors),
-        time_horizon: time_horizon.unwrap_or(d.time_horizon),
-        max_speed: max_speed.unwrap_or(d.max_speed),
-        polygon_sides: polygon_sides.unwrap_or(d.polygon_sides),
-        sf_relaxation_time: sf_relaxation_time.unwrap_or(d.sf_relaxation_time),
-        sf_strength: sf_strength.unwrap_or(d.sf_strength),
-        sf_range: sf_range.unwrap_or(d.sf_range),
-        threads: threads.unwrap_or(d.threads),
-    };
-    params.validate().map_err(|e| parameter_error(py, e))?;
+    // Each value checked against the tracker's parameter table (the same names and ranges).
+    let mut p = TrackerParams::default();
+    p.set("motion", ParamValue::Choice(motion.into()))
+        .map_err(track_error)?;
+    for (name, value) in [
+        ("neighbor_radius", neighbor_radius),
+        ("max_neighbors", max_neighbors),
+        ("time_horizon", time_horizon),
+        ("max_speed", max_speed),
+        ("polygon_sides", polygon_sides),
+        ("sf_relaxation_time", sf_relaxation_time),
+        ("sf_strength", sf_strength),
+        ("sf_range", sf_range),
+        ("threads", threads),
+    ] {
+        if let Some(v) = value {
+            let kind = TrackerParams::kind_of(name).expect("a motion parameter");
+            p.set(name, param_value(name, kind, v)?)
+                .map_err(track_error)?;
+        }
+    }
+    let (kind, params) = (p.motion, p.motion_params);
 
     let arrays = [
         as_points(py, positions, "positions")?,
@@ -110,7 +118,7 @@ fn step_crowd<'py>(
         .zip(["positions", "velocities", "pref_velocities", "axes"])
     {
         if a.shape()[0] != n {
-            return Err(PyValueError::new_err(format!(
+            return Err(input_error(format!(
                 "{name} has {} rows but positions has {n}",
                 a.shape()[0]
             )));

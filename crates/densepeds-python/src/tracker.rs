@@ -6,14 +6,13 @@
 use std::borrow::Cow;
 
 use assoc::{Embeddings, ParamKind, ParamValue, TrackerParams};
-use frvo::MotionKind;
 use numpy::ndarray::{Array1, Array2};
 use numpy::prelude::*;
 use numpy::{PyArray1, PyArray2, PyReadonlyArrayDyn, PyUntypedArray};
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyDict};
+use pyo3::types::{PyBool, PyDict, PyTuple};
 
-use crate::errors::{input_error, parameter_error, track_error};
+use crate::errors::{busy_error, input_error, parameter_error, track_error};
 
 /// A float array of either precision, borrowed from Python.
 enum FloatArray<'py> {
@@ -91,16 +90,7 @@ fn check_2d(a: &FloatArray<'_>, name: &str, cols: Option<usize>) -> PyResult<(us
     }
 }
 
-fn motion_name(kind: MotionKind) -> &'static str {
-    match kind {
-        MotionKind::Frvo => "frvo",
-        MotionKind::Rvo => "rvo",
-        MotionKind::SocialForce => "sf",
-        MotionKind::ConstantVelocity => "cv",
-    }
-}
-
-fn param_value(name: &str, kind: ParamKind, v: &Bound<'_, PyAny>) -> PyResult<ParamValue> {
+pub fn param_value(name: &str, kind: ParamKind, v: &Bound<'_, PyAny>) -> PyResult<ParamValue> {
     let is_bool = v.is_instance_of::<PyBool>() || v.get_type().name()? == "bool_";
     let wrong = |what: &str| parameter_error(format!("{name} must be {what}, got {v}"));
     Ok(match kind {
@@ -114,7 +104,54 @@ fn param_value(name: &str, kind: ParamKind, v: &Bound<'_, PyAny>) -> PyResult<Pa
             ParamValue::Float(v.extract::<f64>().map_err(|_| wrong("a number"))?)
         }
         ParamKind::Float => return Err(wrong("a number")),
+        ParamKind::Choice => ParamValue::Choice(v.extract::<String>().map_err(|_| wrong("a str"))?),
     })
+}
+
+/// A parameter value as a Python object.
+fn value_object<'py>(py: Python<'py>, v: ParamValue) -> PyResult<Bound<'py, PyAny>> {
+    Ok(match v {
+        ParamValue::Float(f) => f.into_pyobject(py)?.into_any(),
+        ParamValue::Int(i) => i.into_pyobject(py)?.into_any(),
+        ParamValue::Bool(b) => PyBool::new(py, b).to_owned().into_any(),
+        ParamValue::Choice(s) => s.into_pyobject(py)?.into_any(),
+    })
+}
+
+/// The keyword arguments that give `TrackerParams::pure()`: those where it differs from the
+/// defaults.
+fn pure_params(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+    let (pure, defaults) = (TrackerParams::pure(), TrackerParams::default());
+    let d = PyDict::new(py);
+    for s in assoc::PARAMS {
+        let v = pure.get(s.name).expect("every row has a field");
+        if Some(&v) != defaults.get(s.name).as_ref() {
+            d.set_item(s.name, value_object(py, v)?)?;
+        }
+    }
+    Ok(d)
+}
+
+/// The parameter table as Python data: one dict per parameter with its name, Python type
+/// name, default value, range (as text) and one-line doc, in the table's order.
+fn param_table(py: Python<'_>) -> PyResult<Bound<'_, PyTuple>> {
+    let defaults = TrackerParams::default();
+    let rows = assoc::PARAMS
+        .iter()
+        .map(|s| {
+            let d = PyDict::new(py);
+            d.set_item("name", s.name)?;
+            d.set_item("type", s.kind.python_type())?;
+            d.set_item(
+                "default",
+                value_object(py, defaults.get(s.name).expect("row"))?,
+            )?;
+            d.set_item("range", s.range.describe())?;
+            d.set_item("doc", s.doc)?;
+            Ok(d)
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    PyTuple::new(py, rows)
 }
 
 /// Online pedestrian tracker: `Tracker(motion="frvo", **params)`.
@@ -135,19 +172,14 @@ impl PyTracker {
     #[new]
     #[pyo3(signature = (motion = "frvo", **params))]
     fn new(motion: &str, params: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
-        let mut p = TrackerParams {
-            motion: motion.parse::<MotionKind>().map_err(parameter_error)?,
-            ..TrackerParams::default()
-        };
+        let mut p = TrackerParams::default();
+        p.set("motion", ParamValue::Choice(motion.into()))
+            .map_err(track_error)?;
         if let Some(d) = params {
             for (k, v) in d.iter() {
                 let name: String = k.extract()?;
-                let kind = TrackerParams::kind_of(&name).ok_or_else(|| {
-                    parameter_error(format!(
-                        "unknown parameter {name:?}; known: motion, {}",
-                        assoc::params::PARAM_NAMES.join(", ")
-                    ))
-                })?;
+                // An unknown name is reported by `set`, with the known ones.
+                let kind = TrackerParams::kind_of(&name).unwrap_or(ParamKind::Float);
                 p.set(&name, param_value(&name, kind, &v)?)
                     .map_err(track_error)?;
             }
@@ -160,7 +192,7 @@ impl PyTracker {
     /// Returns (ids int64 [M], boxes float64 [M, 4], scores float32 [M], det_index int64 [M]).
     #[pyo3(signature = (boxes, scores, embeddings = None))]
     fn update<'py>(
-        &mut self,
+        slf: &Bound<'py, Self>,
         py: Python<'py>,
         boxes: &Bound<'py, PyAny>,
         scores: &Bound<'py, PyAny>,
@@ -193,7 +225,8 @@ impl PyTracker {
         let box_data = boxes.to_f64();
         let score_data = scores.to_f64();
         let emb_data = emb.as_ref().map(|e| e.to_f32());
-        let tracker = &mut self.inner;
+        let mut this = slf.try_borrow_mut().map_err(|_| busy_error())?;
+        let tracker = &mut this.inner;
         let out = py
             .detach(|| {
                 let e = emb_data.as_deref().map(|data| Embeddings { data, dim });
@@ -218,46 +251,55 @@ impl PyTracker {
     }
 
     /// Forgets all tracks; ids restart at 1.
-    fn reset(&mut self) {
-        self.inner.reset();
+    fn reset(slf: &Bound<'_, Self>) -> PyResult<()> {
+        slf.try_borrow_mut()
+            .map_err(|_| busy_error())?
+            .inner
+            .reset();
+        Ok(())
     }
 
     /// Every parameter (including `motion`) with its current value.
     #[getter]
-    fn params<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let p = self.inner.params();
+    fn params<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
+        let py = slf.py();
+        let this = slf.try_borrow().map_err(|_| busy_error())?;
+        let p = this.inner.params();
         let d = PyDict::new(py);
-        d.set_item("motion", motion_name(p.motion))?;
-        for name in assoc::params::PARAM_NAMES {
-            match p.get(name).expect("listed names are known") {
-                ParamValue::Float(f) => d.set_item(name, f)?,
-                ParamValue::Int(i) => d.set_item(name, i)?,
-                ParamValue::Bool(b) => d.set_item(name, b)?,
-            }
+        for s in assoc::PARAMS {
+            d.set_item(
+                s.name,
+                value_object(py, p.get(s.name).expect("every row has a field"))?,
+            )?;
         }
         Ok(d)
     }
 
     /// Frames processed since creation or the last reset.
     #[getter]
-    fn frame_count(&self) -> u64 {
-        self.inner.frame_count()
+    fn frame_count(slf: &Bound<'_, Self>) -> PyResult<u64> {
+        Ok(slf
+            .try_borrow()
+            .map_err(|_| busy_error())?
+            .inner
+            .frame_count())
     }
 
-    fn __repr__(&self) -> String {
-        format!(
+    fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
+        let this = slf.try_borrow().map_err(|_| busy_error())?;
+        Ok(format!(
             "Tracker(motion={:?}, frames={}, tracks={})",
-            motion_name(self.inner.params().motion),
-            self.inner.frame_count(),
-            self.inner.num_tracks()
-        )
+            assoc::params::motion_name(this.inner.params().motion),
+            this.inner.frame_count(),
+            this.inner.num_tracks()
+        ))
     }
 }
 
 type IndexPair<'py> = (Bound<'py, PyArray1<i64>>, Bound<'py, PyArray1<i64>>);
 
 /// Like `scipy.optimize.linear_sum_assignment`: (row_ind, col_ind) of a minimum-cost assignment
-/// of min(N, M) pairs; `inf` entries are forbidden. ValueError when infeasible or NaN.
+/// of min(N, M) pairs; `inf` entries are forbidden. InputError when infeasible or NaN.
 #[pyfunction]
 fn linear_sum_assignment<'py>(
     py: Python<'py>,
@@ -326,6 +368,8 @@ fn cosine_distance_matrix<'py>(
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyTracker>()?;
+    m.add("PARAMS", param_table(m.py())?)?;
+    m.add("PURE_PARAMS", pure_params(m.py())?)?;
     m.add_function(wrap_pyfunction!(linear_sum_assignment, m)?)?;
     m.add_function(wrap_pyfunction!(iou_matrix, m)?)?;
     m.add_function(wrap_pyfunction!(cosine_distance_matrix, m)?)?;
