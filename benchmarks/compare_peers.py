@@ -30,18 +30,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import peers  # noqa: E402
+from accuracy_grid import DET_SEQUENCES as DEV_SEQUENCES  # noqa: E402
 from densepeds import motio  # noqa: E402
 from densepeds.evaluate import evaluate  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
-DEV_SEQUENCES = (
-    "MOT17-02-FRCNN",
-    "TUD-Stadtmitte",
-    "ETH-Sunnyday",
-    "KITTI-17",
-    "Venice-2",
-    "PETS09-S2L1-dev",
-)
 SHOWN = ("HOTA", "IDF1", "MOTA", "IDSW")
 
 
@@ -233,8 +226,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--trackers",
         nargs="+",
-        default=[*peers.PEERS, "densepeds"],
-        help=f"any of {', '.join(peers.PEERS)}, densepeds (= each --motion)",
+        default=[*(p for p in peers.PEERS if p not in peers.NEEDS_EMBEDDINGS), "densepeds"],
+        help=f"any of {', '.join(peers.PEERS)} (except {', '.join(peers.NEEDS_EMBEDDINGS)}: "
+        "these need embeddings), densepeds (= each --motion)",
     )
     ap.add_argument("--motion", nargs="+", default=list(peers.MOTIONS), choices=peers.MOTIONS)
     ap.add_argument("--param", action="append", default=[], help="key=value for our Tracker")

@@ -24,6 +24,8 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 REPO = Path(__file__).resolve().parent.parent
 SHARED = Path(os.environ.get("DENSEPEDS_SHARED", REPO.parent / "shared"))
+# The shared models by bare name (an explicit DENSEPEDS_MODEL_DIR from the environment wins).
+os.environ.setdefault("DENSEPEDS_MODEL_DIR", str(SHARED / "models"))
 
 
 def current_rss_mib() -> float:

@@ -1,19 +1,25 @@
 """Adapters giving every tracker in the comparison one interface on NumPy arrays.
 
-update(boxes float32 [N, 4] (x1, y1, x2, y2), scores float32 [N] in [0, 1])
+update(boxes float32 [N, 4] (x1, y1, x2, y2), scores float32 [N] in [0, 1],
+       embeddings float32 [N, D] or None)
     -> (ids int64 [M], boxes float64 [M, 4] (x1, y1, x2, y2), scores float64 [M])
 
 Each adapter returns what its tracker reports for the frame; conversion to and from the tracker's
 own input format is part of the adapter (and of the timed call: it is the cost of using that
 tracker from NumPy). Peers run with their published defaults; only the frame rate is passed
-where the tracker takes it.
+where the tracker takes it. A peer that can use appearance gets the embeddings our tracker gets
+(``APPEARANCE``); the others ignore them. A peer that cannot run without embeddings
+(``NEEDS_EMBEDDINGS``) is not run on motion-only input. Where a package leaves to its caller
+which tracks to report (deep-sort-realtime), the adapter reports confirmed tracks matched in this
+frame or the one before, as the original DeepSORT application does.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from importlib import metadata
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -22,12 +28,15 @@ from scipy.optimize import linear_sum_assignment
 
 Boxes = npt.NDArray[np.float32]
 Output = tuple[npt.NDArray[np.int64], npt.NDArray[np.float64], npt.NDArray[np.float64]]
+Embeddings = npt.NDArray[np.float32] | None
 
 MOTIONS = ("frvo", "rvo", "sf", "cv")
 
 
 class Adapter(Protocol):
-    def update(self, boxes: Boxes, scores: npt.NDArray[np.float32]) -> Output: ...
+    def update(
+        self, boxes: Boxes, scores: npt.NDArray[np.float32], embeddings: Embeddings = None
+    ) -> Output: ...
 
 
 def _empty() -> Output:
@@ -44,33 +53,118 @@ def _pack(rows: list[tuple[int, list[float], float]], tlwh: bool) -> Output:
     return ids, boxes, np.array([r[2] for r in rows], np.float64)
 
 
+TRACKFORGE = {
+    "bytetrack": "BYTETRACK",
+    "ocsort": "OCSORT",
+    "sort": "SORT",
+    "deepsort": "DEEPSORT",
+    "deepocsort": "DEEPOCSORT",
+    "botsort": "BOTSORT",
+    "tracktrack": "TRACKTRACK",
+}
+TRACKFORGE_APPEARANCE = ("deepsort", "deepocsort", "botsort", "tracktrack")
+
+
 class TrackforgeAdapter:
-    """trackforge (Rust): takes [(tlwh, score, class)], returns (id, tlwh, score, cls, det)."""
+    """trackforge (Rust): takes [(tlwh, score, class)] (and embeddings), returns
+    [(id, tlwh, score, class)]."""
 
     def __init__(self, kind: str) -> None:
         import trackforge
 
-        self.tracker = trackforge.BYTETRACK() if kind == "bytetrack" else trackforge.OCSORT()
+        self.kind = kind
+        self.tracker = getattr(trackforge, TRACKFORGE[kind])()
 
-    def update(self, boxes: Boxes, scores: npt.NDArray[np.float32]) -> Output:
-        tlwh = boxes.astype(np.float64)
+    def update(
+        self, boxes: Boxes, scores: npt.NDArray[np.float32], embeddings: Embeddings = None
+    ) -> Output:
+        tlwh = boxes.astype(np.float64).reshape(-1, 4)
         tlwh[:, 2:] -= tlwh[:, :2]
         dets = list(zip(tlwh.tolist(), scores.tolist(), [0] * len(scores), strict=True))
-        out = self.tracker.update(dets)
+        if self.kind in TRACKFORGE_APPEARANCE:
+            emb = [] if embeddings is None else embeddings.astype(np.float64).tolist()
+            if self.kind == "deepsort" and embeddings is None:
+                raise ValueError("trackforge DEEPSORT needs embeddings")
+            out = self.tracker.update(dets, emb)
+        else:
+            out = self.tracker.update(dets)
         return _pack([(t[0], t[1], t[2]) for t in out], tlwh=True)
 
 
-class RoboflowByteTrackAdapter:
-    """Roboflow `trackers` ByteTrackTracker on supervision Detections; id -1 = not (yet) tracked."""
+class DeepSortRealtimeAdapter:
+    """deep-sort-realtime's DeepSort fed our embeddings (its own embedder off)."""
+
+    def __init__(self) -> None:
+        from deep_sort_realtime.deepsort_tracker import DeepSort
+
+        self.tracker = DeepSort(embedder=None)
+
+    def update(
+        self, boxes: Boxes, scores: npt.NDArray[np.float32], embeddings: Embeddings = None
+    ) -> Output:
+        if embeddings is None:
+            raise ValueError("deep-sort-realtime without its embedder needs embeddings")
+        tlwh = boxes.astype(np.float64).reshape(-1, 4)
+        tlwh[:, 2:] -= tlwh[:, :2]
+        raw = [(b, float(s), 0) for b, s in zip(tlwh.tolist(), scores.tolist(), strict=True)]
+        tracks = self.tracker.update_tracks(raw, embeds=list(embeddings))
+        rows = [
+            (int(t.track_id), list(t.to_ltrb()), float(t.det_conf or 0.0))
+            for t in tracks
+            if t.is_confirmed() and t.time_since_update <= 1
+        ]
+        return _pack(rows, tlwh=False)
+
+
+class MotpyAdapter:
+    """motpy's MultiObjectTracker (dt = 1 / frame rate); its string ids numbered in order."""
 
     def __init__(self, fps: float) -> None:
+        from motpy import MultiObjectTracker
+
+        self.tracker = MultiObjectTracker(dt=1.0 / fps)
+        self.ids: dict[str, int] = {}
+
+    def update(
+        self, boxes: Boxes, scores: npt.NDArray[np.float32], embeddings: Embeddings = None
+    ) -> Output:
+        from motpy import Detection
+
+        dets = [
+            Detection(
+                box=np.asarray(b, np.float64),
+                score=float(s),
+                feature=None if embeddings is None else embeddings[i],
+            )
+            for i, (b, s) in enumerate(zip(boxes, scores, strict=True))
+        ]
+        self.tracker.step(detections=dets)
+        rows = [
+            (self.ids.setdefault(t.id, len(self.ids) + 1), list(t.box), float(t.score or 0.0))
+            for t in self.tracker.active_tracks()
+        ]
+        return _pack(rows, tlwh=False)
+
+
+class RoboflowAdapter:
+    """Roboflow `trackers` (ByteTrack, OC-SORT, SORT) on supervision Detections; id -1 = not (yet)
+    tracked."""
+
+    def __init__(self, kind: str, fps: float) -> None:
         import supervision as sv
-        from trackers import ByteTrackTracker
+        import trackers
 
         self.sv = sv
-        self.tracker = ByteTrackTracker(frame_rate=fps)
+        cls = {
+            "bytetrack": trackers.ByteTrackTracker,
+            "ocsort": trackers.OCSORTTracker,
+            "sort": trackers.SORTTracker,
+        }[kind]
+        self.tracker = cls(frame_rate=fps)
 
-    def update(self, boxes: Boxes, scores: npt.NDArray[np.float32]) -> Output:
+    def update(
+        self, boxes: Boxes, scores: npt.NDArray[np.float32], embeddings: Embeddings = None
+    ) -> Output:
         dets = self.sv.Detections(
             xyxy=boxes.astype(np.float32).reshape(-1, 4),
             confidence=scores.astype(np.float32),
@@ -103,7 +197,9 @@ class IoUBaseline:
     _age: list[int] = field(default_factory=list)
     _next: int = 1
 
-    def update(self, boxes: Boxes, scores: npt.NDArray[np.float32]) -> Output:
+    def update(
+        self, boxes: Boxes, scores: npt.NDArray[np.float32], embeddings: Embeddings = None
+    ) -> Output:
         det = boxes.astype(np.float64)
         matched_det: dict[int, int] = {}  # det index -> track index
         if self._ids and len(det):
@@ -142,8 +238,10 @@ class DensePedsAdapter:
 
         self.tracker = Tracker(motion=motion, **params)
 
-    def update(self, boxes: Boxes, scores: npt.NDArray[np.float32]) -> Output:
-        t = self.tracker.update(boxes.astype(np.float64), scores.astype(np.float32))
+    def update(
+        self, boxes: Boxes, scores: npt.NDArray[np.float32], embeddings: Embeddings = None
+    ) -> Output:
+        t = self.tracker.update(boxes.astype(np.float64), scores.astype(np.float32), embeddings)
         return (
             np.asarray(t.ids, np.int64),
             np.asarray(t.boxes, np.float64).reshape(-1, 4),
@@ -160,17 +258,30 @@ def densepeds_available() -> str | None:
     return None
 
 
-PEERS = ("trackforge-bytetrack", "trackforge-ocsort", "roboflow-bytetrack", "iou-baseline")
+PEERS = (
+    *(f"trackforge-{k}" for k in TRACKFORGE),
+    "roboflow-bytetrack",
+    "roboflow-ocsort",
+    "roboflow-sort",
+    "deep-sort-realtime",
+    "motpy",
+    "iou-baseline",
+)
+# Peers that use appearance embeddings when given them; those that need them to run at all.
+APPEARANCE = (*(f"trackforge-{k}" for k in TRACKFORGE_APPEARANCE), "deep-sort-realtime")
+NEEDS_EMBEDDINGS = ("trackforge-deepsort", "deep-sort-realtime")
 
 
 def make_tracker(name: str, fps: float, params: dict[str, object] | None = None) -> Adapter:
     """A fresh tracker for one sequence. Ours are named densepeds-<motion>."""
-    if name == "trackforge-bytetrack":
-        return TrackforgeAdapter("bytetrack")
-    if name == "trackforge-ocsort":
-        return TrackforgeAdapter("ocsort")
-    if name == "roboflow-bytetrack":
-        return RoboflowByteTrackAdapter(fps)
+    if name.startswith("trackforge-") and name.removeprefix("trackforge-") in TRACKFORGE:
+        return TrackforgeAdapter(name.removeprefix("trackforge-"))
+    if name.startswith("roboflow-"):
+        return RoboflowAdapter(name.removeprefix("roboflow-"), fps)
+    if name == "deep-sort-realtime":
+        return DeepSortRealtimeAdapter()
+    if name == "motpy":
+        return MotpyAdapter(fps)
     if name == "iou-baseline":
         return IoUBaseline()
     if name.startswith("densepeds-") and name.removeprefix("densepeds-") in MOTIONS:
@@ -185,6 +296,8 @@ def versions() -> dict[str, str]:
         "densepeds",
         "trackforge",
         "trackers",
+        "deep-sort-realtime",
+        "motpy",
         "supervision",
         "trackeval",
         "numpy",
@@ -195,3 +308,34 @@ def versions() -> dict[str, str]:
         except metadata.PackageNotFoundError:
             out[pkg] = "not installed"
     return out
+
+
+class PipelineTracker:
+    """An adapter as ``densepeds.Pipeline``'s ``tracker``: update(boxes, scores, embeddings) ->
+    Tracks, reset(). Peers do not say which detection a track took: ``det_index`` is -1."""
+
+    def __init__(self, make: Callable[[], Adapter]) -> None:
+        self.make = make
+        self.adapter = make()
+
+    def update(
+        self,
+        boxes: npt.NDArray[np.float64],
+        scores: npt.NDArray[np.float32],
+        embeddings: Embeddings,
+    ) -> Any:
+        from densepeds.tracking import Tracks
+
+        ids, out_boxes, out_scores = self.adapter.update(
+            boxes.astype(np.float32), np.asarray(scores, np.float32), embeddings
+        )
+        order = np.argsort(ids, kind="stable")
+        return Tracks(
+            ids[order],
+            out_boxes[order].reshape(-1, 4),
+            out_scores[order].astype(np.float32),
+            np.full(len(ids), -1, np.int64),
+        )
+
+    def reset(self) -> None:
+        self.adapter = self.make()

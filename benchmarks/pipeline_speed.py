@@ -36,6 +36,8 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 SHARED = Path(os.environ.get("DENSEPEDS_SHARED", REPO.parent / "shared"))
+# The shared models by bare name (an explicit DENSEPEDS_MODEL_DIR from the environment wins).
+os.environ.setdefault("DENSEPEDS_MODEL_DIR", str(SHARED / "models"))
 STAGE_RE = re.compile(r"([a-z]+) ([0-9.]+)")
 REUSE_CHILD = "--child-run-with-reuse"
 DETECTOR_INPUT = 320  # the shared segmenter's input size, which sets the automatic tiles

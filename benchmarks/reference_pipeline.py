@@ -25,6 +25,11 @@ import time
 from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # numpy's BLAS threads fight onnxruntime's
+# The shared models by bare name (an explicit DENSEPEDS_MODEL_DIR from the environment wins).
+os.environ.setdefault(
+    "DENSEPEDS_MODEL_DIR",
+    str(Path(os.environ.get("DENSEPEDS_SHARED", Path(__file__).parents[2] / "shared")) / "models"),
+)
 
 import numpy as np
 import onnxruntime as ort

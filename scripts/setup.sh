@@ -1,22 +1,33 @@
 #!/usr/bin/env bash
-# Creates .venv, installs the Python dependencies and builds the package (Rust extension included).
+# Creates .venv, builds the manylinux wheel (Rust extension included, scripts/build-wheel.sh) and
+# installs it with the dev and eval extras. Prints each step as it goes.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-python3}
+step() { echo "setup: $*" >&2; }
 if ! command -v cargo >/dev/null 2>&1; then
   echo "cargo not found: install Rust from https://rustup.rs first" >&2
   exit 1
 fi
-[ -d .venv ] || "$PY" -m venv .venv
+if [ ! -d .venv ]; then
+  step "creating .venv"
+  "$PY" -m venv .venv
+fi
 . .venv/bin/activate
+step "upgrading pip"
 python -m pip install -q --upgrade pip
-python -m pip install -q "maturin>=1.7,<2"
-# Build the wheel and install it with its dependencies and the dev extra (peers: see benchmarks/).
-maturin build --release -q -o target/wheels-local >/dev/null
-python -m pip install -q --force-reinstall --no-deps target/wheels-local/densepeds-*.whl
-python -m pip install -q "$(ls target/wheels-local/densepeds-*.whl | head -1)[dev]"
-# The peers pull opencv-python (GUI build); keep only the headless one we depend on.
+WHEEL=$(./scripts/build-wheel.sh target/wheels)
+step "installing $(basename "$WHEEL") with the dev and eval extras (numpy, onnxruntime, OpenCV, ...)"
+python -m pip install -q --force-reinstall --no-deps "$WHEEL"
+python -m pip install -q "$WHEEL[dev,eval]"
+# trackeval without its declared dependencies: they add opencv-python (a second cv2 beside
+# opencv-python-headless), matplotlib and pillow, none of which MOTChallenge scoring uses.
+step "installing trackeval (without its dependencies)"
+python -m pip install -q --no-deps "trackeval>=1.3"
+# The peers (pip install '.[peers]', benchmarks/) pull opencv-python; keep only the headless one.
 if python -m pip show opencv-python >/dev/null 2>&1; then
+  step "removing opencv-python (a second cv2 beside opencv-python-headless)"
   python -m pip uninstall -q -y opencv-python
   python -m pip install -q --force-reinstall --no-deps opencv-python-headless
 fi
+step "done: . .venv/bin/activate, then densepeds --help"

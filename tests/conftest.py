@@ -24,7 +24,7 @@ def shared() -> Path:
     return shared_path()
 
 
-# Model lookup by bare name (the CLI's defaults) finds the shared models wherever the package is
-# installed; an explicit DENSEPEDS_MODEL_DIR from the environment still wins.
+# Model lookup by bare name (the CLI's defaults) searches only $DENSEPEDS_MODEL_DIR and the user
+# cache: point it at the shared models (an explicit DENSEPEDS_MODEL_DIR from the environment wins).
 if (SHARED / "models").is_dir():
     os.environ.setdefault("DENSEPEDS_MODEL_DIR", str(SHARED / "models"))

@@ -159,6 +159,7 @@ def test_pets_video_with_real_models(capsys: pytest.CaptureFixture[str], tmp_pat
     )
     assert rc == 0 and "20 frames" in stdout
     assert re.search(r"detection [\d.]+, reid [\d.]+, tracking", stdout)
+    assert "frames/s for the whole pipeline; timed: decode + detection + reid" in stdout
     tracks = read_tracks(out)
     assert set(np.unique(tracks[:, 0])) <= set(range(1, 21))
     import cv2
@@ -226,3 +227,196 @@ def test_run_offers_every_masking(capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit):
         build_parser().parse_args(["run", "x.mp4", "--features", "white"])
     capsys.readouterr()
+
+
+# --- the CLI as users of other tools expect it (issue 18) ------------------------------------
+
+
+def test_version(capsys: pytest.CaptureFixture[str]) -> None:
+    from densepeds import __version__
+
+    for flag in ("--version", "-V"):
+        with pytest.raises(SystemExit) as exc:
+            main([flag])
+        assert exc.value.code == 0
+        assert capsys.readouterr().out.strip() == f"densepeds {__version__}"
+
+
+def test_mistyped_command_is_not_an_input_file(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    for word, needle in (("evl", "did you mean 'eval'?"), ("modles", "did you mean 'models'?")):
+        with pytest.raises(SystemExit) as exc:
+            main([word, "--gt", "x"])
+        _, err = capsys.readouterr()
+        _one_line_error(int(exc.value.code or 0), err, f"unknown command '{word}'", needle)
+    with pytest.raises(SystemExit) as exc:
+        main(["frobnicate"])
+    _, err = capsys.readouterr()
+    _one_line_error(int(exc.value.code or 0), err, "unknown command 'frobnicate'", "run, eval")
+    assert "did you mean" not in err
+    # A path-like word is still an input for `run`, which says it is missing; an existing
+    # file named like a command-ish word is an input too.
+    rc, _, err = _run(capsys, "clip.mp4")
+    _one_line_error(rc, err, "clip.mp4", "no such file")
+    (tmp_path / "frobnicate").write_bytes(b"x")
+    rc, _, err = _run(capsys, "frobnicate")
+    assert rc == 2 and "unknown command" not in err
+
+
+def test_every_option_has_help() -> None:
+    import argparse
+
+    from densepeds.cli import build_parser
+
+    def walk(parser: argparse.ArgumentParser, name: str) -> list[str]:
+        missing = []
+        for action in parser._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                for sub_name, sub in action.choices.items():
+                    missing += walk(sub, f"{name} {sub_name}")
+            elif not action.help or action.help == argparse.SUPPRESS:
+                missing.append(f"{name}: {action.option_strings or action.dest}")
+        return missing
+
+    assert walk(build_parser(), "densepeds") == []
+
+
+def test_eval_help_describes_its_options(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit):
+        main(["eval", "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert "--gt SEQ_DIR [SEQ_DIR ...] ground-truth sequence folder(s)" in out
+    assert "--format {md,csv,json} output format" in out
+    assert "--frames A:B score only frames" in out
+    assert "pip install 'densepeds[eval]' && pip install --no-deps 'trackeval>=1.3'" in out
+
+
+def test_speed_says_what_was_timed(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """A det-file run's frames/s is the tracker's, and says so (not the pipeline's speed)."""
+    _needs_tracker()
+    seq = shared_path("data", "TUD-Stadtmitte")
+    rc, stdout, _ = _run(capsys, "run", str(seq), "--frames", "1:20", "--out", str(tmp_path / "t"))
+    assert rc == 0
+    assert re.search(
+        r"[\d.]+ frames/s for tracking from given detections \(no detector ran\); timed: "
+        r"[a-z +]*tracking",
+        stdout,
+    ), stdout
+    assert "whole pipeline" not in stdout and " fps" not in stdout
+
+
+def test_model_mixup_names_the_cli_flag(capsys: pytest.CaptureFixture[str]) -> None:
+    video = shared_path("data", "PETS09-S2L1-dev", "vtest.avi")
+    yolo = shared_path("models", "yolov8n-seg-320-int8.onnx")
+    osnet = shared_path("models", "osnet_x0_25_msmt17.onnx")
+    rc, _, err = _run(capsys, "run", str(video), "--reid-model", str(yolo), "--frames", "1:2")
+    _one_line_error(rc, err, str(yolo), "--reid-model", "detector given as the re-ID model")
+    assert "pass kind=" not in err
+    rc, _, err = _run(capsys, "run", str(video), "--detector-model", str(osnet), "--frames", "1:2")
+    _one_line_error(rc, err, str(osnet), "--detector-model")
+
+
+# --- eval --frames -----------------------------------------------------------------------------
+
+
+def test_eval_frames_scores_a_partial_run(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """`eval --frames 50:89` on a run of frames 50-89 gives the scores of the same tracks against
+    a ground truth holding only those frames (an independent route: frames without gt or tracks
+    add nothing to HOTA, CLEAR or IDF1); without --frames, a warning and lower scores."""
+    _needs_tracker()
+    from densepeds.evaluate import METRICS, evaluate
+
+    seq = shared_path("data", "TUD-Stadtmitte")
+    out = tmp_path / "part.txt"
+    assert main(["run", str(seq), "--frames", "50:89", "--out", str(out), "-q"]) == 0
+    capsys.readouterr()
+    rc, stdout, err = _run(
+        capsys,
+        "eval",
+        "--gt",
+        str(seq),
+        "--tracks",
+        str(out),
+        "--frames",
+        "50:89",
+        "--format",
+        "json",
+    )
+    assert rc == 0 and err == ""
+    scored = json.loads(stdout)["combined"]
+
+    ref = tmp_path / "ref" / seq.name
+    (ref / "gt").mkdir(parents=True)
+    (ref / "seqinfo.ini").write_text((seq / "seqinfo.ini").read_text())
+    lines = (seq / "gt" / "gt.txt").read_text().splitlines()
+    kept = [line for line in lines if 50 <= int(float(line.split(",")[0])) <= 89]
+    (ref / "gt" / "gt.txt").write_text("\n".join(kept) + "\n")
+    reference = evaluate([ref], out)
+    assert reference.warnings == []
+    for metric in (*METRICS, "IDP", "IDR", "GT_IDs", "IDs"):
+        assert scored[metric] == pytest.approx(reference.combined[metric], abs=1e-9), metric
+    assert scored["MOTA"] > 20  # real tracking, not an empty comparison
+
+    rc, stdout, err = _run(capsys, "eval", "--gt", str(seq), "--tracks", str(out))
+    assert rc == 0
+    assert re.search(r"warning: .*tracks cover frames 5[01]-89 but the ground truth 1-179", err)
+    assert "eval --frames" in err
+    whole = evaluate([seq], out).combined
+    assert whole["HOTA"] < scored["HOTA"] - 10 and whole["FN"] > scored["FN"]
+
+
+def test_eval_frames_mistakes(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    seq = shared_path("data", "TUD-Stadtmitte")
+    tracks = tmp_path / "t.txt"
+    tracks.write_text("1,1,10,10,20,40,1,-1,-1,-1\n")
+    rc, _, err = _run(capsys, "eval", "--gt", str(seq), "--tracks", str(tracks), "--frames", "9:3")
+    _one_line_error(rc, err, "9:3")
+    rc, _, err = _run(capsys, "eval", "--gt", str(seq), "--tracks", str(tracks), "--frames", "500:")
+    _one_line_error(rc, err, "past the end", "179 frames")
+
+
+def test_eval_without_trackeval_says_what_to_install(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    seq = shared_path("data", "TUD-Stadtmitte")
+    tracks = tmp_path / "t.txt"
+    tracks.write_text("1,1,10,10,20,40,1,-1,-1,-1\n")
+    monkeypatch.setitem(sys.modules, "trackeval", None)  # import fails as if not installed
+    rc, _, err = _run(capsys, "eval", "--gt", str(seq), "--tracks", str(tracks))
+    _one_line_error(
+        rc, err, "pip install 'densepeds[eval]' && pip install --no-deps 'trackeval>=1.3'"
+    )
+
+
+def test_eval_benchmark_option(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """The rules can be named on the command line, and the error for class-less gt says how."""
+    seq = shared_path("data", "TUD-Stadtmitte")
+    tracks = tmp_path / "t.txt"
+    gt_rows = (seq / "gt" / "gt.txt").read_text().splitlines()[:50]
+    tracks.write_text("".join(",".join(r.split(",")[:6]) + ",1,-1,-1,-1\n" for r in gt_rows))
+    rc, _, err = _run(
+        capsys, "eval", "--gt", str(seq), "--tracks", str(tracks), "--benchmark", "MOT17"
+    )
+    _one_line_error(rc, err, "--benchmark MOT15")
+    runs = {}
+    for bench in ("auto", "MOT15"):
+        rc, out, _ = _run(
+            capsys,
+            "eval",
+            "--gt",
+            str(seq),
+            "--tracks",
+            str(tracks),
+            "--benchmark",
+            bench,
+            "--format",
+            "json",
+        )
+        assert rc == 0
+        runs[bench] = json.loads(out)
+    assert runs["auto"] == runs["MOT15"] and runs["MOT15"]["benchmarks"][seq.name] == "MOT15"
+    assert runs["MOT15"]["combined"]["FP"] == 0  # the tracks are gt boxes

@@ -1,4 +1,4 @@
-"""Command line: ``python -m densepeds run|eval|ablate|scene``.
+"""Command line: ``python -m densepeds run|eval|ablate|scene|models``.
 
 User mistakes (missing files, bad option values, unreadable video, malformed det files, model
 mismatches) print one line to stderr and exit 2; there is no traceback for them.
@@ -7,6 +7,7 @@ mismatches) print one line to stderr and exit 2; there is no traceback for them.
 from __future__ import annotations
 
 import argparse
+import difflib
 import sys
 import tempfile
 import textwrap
@@ -19,7 +20,13 @@ from densepeds.pipeline import DEFAULT_FEATURES, DETECTORS, FEATURES, MOTIONS
 from densepeds.presets import DEFAULT_PRESET, PRESETS
 
 EXIT_USAGE = 2
-COMMANDS = ("run", "eval", "ablate", "scene")
+COMMANDS = ("run", "eval", "ablate", "scene", "models")
+FORMATS = ("md", "csv", "json")
+FORMAT_HELP = "output format: md (Markdown table), csv, or json (every metric, full precision)"
+PARAM_HELP = (
+    "tracker parameter, e.g. max_age=30 (repeatable; the names are "
+    "densepeds.tracking.Tracker().params)"
+)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -72,8 +79,16 @@ def _presets_help() -> str:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="densepeds", description="Pedestrian tracking in dense crowds.")
-    sub = parser.add_subparsers(dest="command", parser_class=_Parser)
+    from densepeds import __version__
+    from densepeds.evaluate import BENCHMARKS, INSTALL_HINT
+
+    parser = _Parser(
+        prog="densepeds",
+        description="Pedestrian tracking in dense crowds. `densepeds [INPUT]` means "
+        "`densepeds run [INPUT]`.",
+    )
+    parser.add_argument("--version", "-V", action="version", version=f"densepeds {__version__}")
+    sub = parser.add_subparsers(dest="command", parser_class=_Parser, metavar="COMMAND")
 
     run = sub.add_parser(
         "run",
@@ -83,12 +98,32 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=_presets_help(),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    run.add_argument("input", nargs="?", help="video file, image folder or sequence folder")
-    run.add_argument("--detections", metavar="FILE", help="MOTChallenge det.txt to track from")
-    run.add_argument("--detector", choices=DETECTORS, help="detect people in the frames")
-    run.add_argument("--detector-model", metavar="PATH", help="detector ONNX model file")
-    run.add_argument("--reid-model", metavar="PATH", help="re-ID ONNX model file")
-    run.add_argument("--motion", choices=MOTIONS, default="frvo", help="motion model")
+    run.add_argument(
+        "input",
+        nargs="?",
+        help="video file, image folder or MOTChallenge sequence folder (seqinfo.ini, img1/ "
+        "and/or det/det.txt)",
+    )
+    run.add_argument(
+        "--detections",
+        metavar="FILE",
+        help="MOTChallenge det.txt to track from (overrides a sequence's det/det.txt)",
+    )
+    run.add_argument(
+        "--detector",
+        choices=DETECTORS,
+        help="detect people in the frames with this CNN (default: yoloseg where there are "
+        "frames and no det file)",
+    )
+    run.add_argument("--detector-model", metavar="PATH", help=DETECTOR_MODEL_HELP)
+    run.add_argument("--reid-model", metavar="PATH", help=REID_MODEL_HELP)
+    run.add_argument(
+        "--motion",
+        choices=MOTIONS,
+        default="frvo",
+        help="motion model: frvo (the method), rvo, sf (social forces), cv (constant "
+        "velocity); default frvo",
+    )
     run.add_argument(
         "--preset",
         choices=PRESETS,
@@ -103,8 +138,15 @@ def build_parser() -> argparse.ArgumentParser:
         f"masked_blur (other fills), none (motion only); default: {DEFAULT_FEATURES} where "
         f"there are frames (segmented on the built-in scene), else none",
     )
-    run.add_argument("--frames", metavar="A:B", help="frame range, 1-based and inclusive")
-    run.add_argument("--out", metavar="TRACKS.txt", type=Path, help="tracks output file")
+    run.add_argument(
+        "--frames", metavar="A:B", help="frame range, 1-based and inclusive (A:, :B and A work)"
+    )
+    run.add_argument(
+        "--out",
+        metavar="TRACKS.txt",
+        type=Path,
+        help="tracks output file, MOTChallenge format (default: out/<input name>.txt)",
+    )
     run.add_argument("--video", metavar="OUT.mp4", type=Path, help="annotated video output")
     run.add_argument(
         "--param",
@@ -112,14 +154,27 @@ def build_parser() -> argparse.ArgumentParser:
         type=_tracker_param,
         action="append",
         default=[],
-        help="tracker parameter (repeatable)",
+        help=PARAM_HELP,
     )
     run.add_argument("--seed", type=int, default=0, help="built-in scene: random seed")
     run.add_argument("--scene-frames", type=int, default=150, help="built-in scene: frames")
     run.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
 
-    ev = sub.add_parser("eval", help="HOTA, MOTA, IDF1, ... of tracks against ground truth")
-    ev.add_argument("--gt", nargs="+", required=True, metavar="SEQ_DIR", type=Path)
+    ev = sub.add_parser(
+        "eval",
+        help="HOTA, MOTA, IDF1, ... of tracks against ground truth",
+        description="Score MOTChallenge tracks against ground truth with TrackEval (HOTA, "
+        f"CLEAR MOT, IDF1). Needs TrackEval: {INSTALL_HINT}",
+    )
+    ev.add_argument(
+        "--gt",
+        nargs="+",
+        required=True,
+        metavar="SEQ_DIR",
+        type=Path,
+        help="ground-truth sequence folder(s), each with gt/gt.txt (and seqinfo.ini for the "
+        "length); MOT15/17/20 rules are chosen from the gt columns and the name",
+    )
     ev.add_argument(
         "--tracks",
         required=True,
@@ -127,14 +182,33 @@ def build_parser() -> argparse.ArgumentParser:
         type=Path,
         help="a tracks file (one sequence) or a folder of SEQNAME.txt",
     )
-    ev.add_argument("--format", choices=("md", "csv", "json"), default="md")
+    ev.add_argument(
+        "--frames",
+        metavar="A:B",
+        help="score only frames A..B (1-based, inclusive) of the ground truth and the tracks, "
+        "e.g. the range given to `run --frames`",
+    )
+    ev.add_argument(
+        "--benchmark",
+        choices=("auto", *BENCHMARKS),
+        default="auto",
+        help="scoring rules: MOT15 (no classes) or MOT16/17/20 (class 1 scored, distractors "
+        "ignored); default auto, from the gt columns and the sequence name",
+    )
+    ev.add_argument("--format", choices=FORMATS, default="md", help=FORMAT_HELP)
 
     ab = sub.add_parser(
         "ablate",
         help="motion models x feature kinds, one table like the paper's Table III",
         description="Rerun the ablation on the sequences (no SEQ_DIR: the built-in scene).",
     )
-    ab.add_argument("seqs", nargs="*", metavar="SEQ_DIR", type=Path)
+    ab.add_argument(
+        "seqs",
+        nargs="*",
+        metavar="SEQ_DIR",
+        type=Path,
+        help="MOTChallenge sequence folders with gt/gt.txt (none: the built-in scene)",
+    )
     ab.add_argument(
         "--motion",
         type=_csv_choices(MOTIONS),
@@ -149,21 +223,81 @@ def build_parser() -> argparse.ArgumentParser:
     ab.add_argument(
         "--detector", choices=DETECTORS, help="detect in the frames instead of reading det/det.txt"
     )
-    ab.add_argument("--detector-model", metavar="PATH")
-    ab.add_argument("--reid-model", metavar="PATH")
+    ab.add_argument("--detector-model", metavar="PATH", help=DETECTOR_MODEL_HELP)
+    ab.add_argument("--reid-model", metavar="PATH", help=REID_MODEL_HELP)
     ab.add_argument("--frames", metavar="A:B", help="frame range (gt is cut to match)")
-    ab.add_argument("--format", choices=("md", "csv", "json"), default="md")
+    ab.add_argument("--format", choices=FORMATS, default="md", help=FORMAT_HELP)
     ab.add_argument(
-        "--param", metavar="KEY=VALUE", type=_tracker_param, action="append", default=[]
+        "--param",
+        metavar="KEY=VALUE",
+        type=_tracker_param,
+        action="append",
+        default=[],
+        help=PARAM_HELP,
     )
-    ab.add_argument("--quiet", "-q", action="store_true")
+    ab.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
 
     sc = sub.add_parser("scene", help="write the built-in scene as a MOTChallenge sequence")
-    sc.add_argument("out_dir", type=Path)
-    sc.add_argument("--seed", type=int, default=0)
-    sc.add_argument("--frames", type=int, default=150)
+    sc.add_argument(
+        "out_dir", type=Path, help="folder to write the sequence into (as DensePeds-scene-SEED)"
+    )
+    sc.add_argument("--seed", type=int, default=0, help="random seed of the simulation")
+    sc.add_argument("--frames", type=int, default=150, help="number of frames")
     sc.add_argument("--no-images", action="store_true", help="only seqinfo, gt and det")
+
+    _add_models_parser(sub)
     return parser
+
+
+DETECTOR_MODEL_HELP = (
+    "detector ONNX file (default: the --detector's own model, from $DENSEPEDS_MODEL_DIR or "
+    "the user cache; see `densepeds models`)"
+)
+REID_MODEL_HELP = (
+    "re-ID ONNX file, e.g. an OSNet export (default: osnet_x0_25_msmt17.onnx from "
+    "$DENSEPEDS_MODEL_DIR or the user cache; see `densepeds models`)"
+)
+
+
+def _add_models_parser(sub: Any) -> None:
+    from densepeds.modelfiles import URL_ENV_VAR
+
+    mo = sub.add_parser(
+        "models",
+        help="list the known models and where they are; fetch or install them",
+        description="With no action: list the models densepeds knows (file, size, sha256, "
+        "licence, input/output contract), the folders searched and what was found there.",
+    )
+    act = mo.add_subparsers(dest="action", parser_class=_Parser, metavar="ACTION")
+    act.add_parser("list", help="the same as no action")
+    fe = act.add_parser(
+        "fetch",
+        help="download models into the user cache (pinned, sha256-verified, resumable)",
+        description="Download models into the user cache, verify their sha256, resume an "
+        "interrupted download.",
+    )
+    fe.add_argument(
+        "names",
+        nargs="*",
+        metavar="NAME",
+        help="model names or files (default: every model with a pinned checksum)",
+    )
+    fe.add_argument(
+        "--url",
+        metavar="BASE",
+        help=f"mirror base URL: BASE/<file> is downloaded (default: ${URL_ENV_VAR}, else the "
+        "model's published URL)",
+    )
+    fe.add_argument("--dir", type=Path, metavar="DIR", help="install here instead of the cache")
+    fe.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    ins = act.add_parser(
+        "install",
+        help="copy model files you have (a file, or a folder of them) into the user cache",
+        description="Copy model files into the user cache, verified against their pinned "
+        "sha256 (for offline machines or mirrored copies).",
+    )
+    ins.add_argument("source", type=Path, metavar="FILE|DIR", help="a model file or a folder")
+    ins.add_argument("--dir", type=Path, metavar="DIR", help="install here instead of the cache")
 
 
 # --- run -------------------------------------------------------------------------------------
@@ -229,8 +363,22 @@ def _summary(name: str, frames: int, n_ids: int, out: Path, pipe: Any, video: Pa
     extra = f" and {video}" if video else ""
     return (
         f"{name}: {frames} frames, {n_ids} tracks (preset {pipe.preset.name}) -> {out}{extra}; "
-        f"{t.fps:.1f} fps "
-        f"({t.breakdown()})"
+        f"{_speed(t)}"
+    )
+
+
+def _speed(times: Any) -> str:
+    """Frames per second over the stages that ran, named, so that a det-file run's tracker
+    speed does not read as the speed of the whole pipeline."""
+    ran = [k for k, v in times.seconds.items() if v > 0]
+    what = (
+        "the whole pipeline"
+        if "detection" in ran
+        else "tracking from given detections (no detector ran)"
+    )
+    return (
+        f"{times.fps:.1f} frames/s for {what}; timed: {' + '.join(ran) or 'nothing'} "
+        f"({times.breakdown()})"
     )
 
 
@@ -316,9 +464,49 @@ def _run_scene(args: argparse.Namespace) -> int:
 def _cmd_eval(args: argparse.Namespace) -> int:
     from densepeds.evaluate import evaluate, format_results
 
-    result = evaluate(list(args.gt), args.tracks)
+    result = evaluate(list(args.gt), args.tracks, benchmark=args.benchmark, frames=args.frames)
+    for note in result.warnings:
+        sys.stderr.write(f"densepeds eval: warning: {note}\n")
     print(format_results(result, args.format))
     return 0
+
+
+def _cmd_models(args: argparse.Namespace) -> int:
+    from densepeds import modelfetch, modelfiles
+
+    if args.action in (None, "list"):
+        print(_models_listing())
+        return 0
+    if args.action == "install":
+        for path in modelfetch.install(args.source, dest_dir=args.dir):
+            print(f"installed {path}")
+        return 0
+    names = args.names or [m.name for m in modelfetch.fetchable()]
+    for name in names:
+        info = modelfiles.model_info(name)
+        path = modelfetch.fetch(info.name, base_url=args.url, dest_dir=args.dir, quiet=args.quiet)
+        print(f"{info.name}: {path} (sha256 verified)")
+    return 0
+
+
+def _models_listing() -> str:
+    from densepeds import modelfiles
+
+    lines = ["Models densepeds knows:"]
+    for m in modelfiles.MODELS.values():
+        found = modelfiles.locate(m.file)
+        size = f"{m.size} bytes" if m.size is not None else "size not fixed"
+        lines += [
+            f"  {m.name}: {m.file} ({size}) -- {m.role}",
+            f"    found: {found if found else 'no'}",
+            f"    sha256: {m.sha256 or 'none pinned (made locally)'}",
+            f"    licence: {m.licence}",
+            f"    contract: {m.contract}",
+            f"    get it: {m.url or modelfiles.how_to_get(m.file)}",
+        ]
+    lines.append("Searched, in order ($DENSEPEDS_MODEL_DIR, then the user cache):")
+    lines += [f"  {d}{'' if d.is_dir() else ' (missing)'}" for d in modelfiles.search_dirs()]
+    return "\n".join(lines)
 
 
 def _cmd_ablate(args: argparse.Namespace) -> int:
@@ -349,11 +537,15 @@ def _cmd_scene(args: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args_list = list(sys.argv[1:] if argv is None else argv)
-    if not args_list or (args_list[0] not in COMMANDS and args_list[0] not in ("-h", "--help")):
-        args_list.insert(0, "run")  # `densepeds [INPUT]` means `densepeds run [INPUT]`
+    args_list = _with_command(list(sys.argv[1:] if argv is None else argv))
     args = build_parser().parse_args(args_list)
-    handlers = {"run": _cmd_run, "eval": _cmd_eval, "ablate": _cmd_ablate, "scene": _cmd_scene}
+    handlers = {
+        "run": _cmd_run,
+        "eval": _cmd_eval,
+        "ablate": _cmd_ablate,
+        "scene": _cmd_scene,
+        "models": _cmd_models,
+    }
     try:
         return handlers[args.command](args)
     except DensePedsError as err:
@@ -364,6 +556,30 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
     except BrokenPipeError:
         return 1
+
+
+def _with_command(args_list: list[str]) -> list[str]:
+    """``densepeds [INPUT] ...`` means ``densepeds run [INPUT] ...``; a first word that is no
+    command, no option and no existing path is a mistyped command (one line, exit 2)."""
+    first = args_list[0] if args_list else None
+    if first is None or (first.startswith("-") and first not in _TOP_OPTIONS):
+        return ["run", *args_list]
+    if first in COMMANDS or first in _TOP_OPTIONS:
+        return args_list
+    if Path(first).exists():
+        return ["run", *args_list]
+    close = difflib.get_close_matches(first, COMMANDS, n=1, cutoff=0.6)
+    if close or not any(c in first for c in "./\\"):
+        hint = f"did you mean {close[0]!r}? " if close else ""
+        sys.stderr.write(
+            f"densepeds: error: unknown command {first!r} and no such file; {hint}"
+            f"(commands: {', '.join(COMMANDS)}; see --help)\n"
+        )
+        sys.exit(EXIT_USAGE)
+    return ["run", *args_list]  # a missing file: `run` says so
+
+
+_TOP_OPTIONS = ("-h", "--help", "--version", "-V")
 
 
 def _one_line(err: BaseException) -> str:

@@ -8,6 +8,13 @@ Rules: MOT16/17/20 gt has class and visibility columns: only class 1 (pedestrian
 flag is scored, and tracker boxes matched to distractor classes are removed before scoring
 (MOT20 also counts non-MOT vehicles as distractors). MOT15 gt has no classes: every box whose
 flag is not 0 is a pedestrian.
+
+``frames="A:B"`` scores only frames A..B of the ground truth and the tracks (both renumbered from
+1). Without it, tracks that cover fewer frames than the ground truth (e.g. from ``run --frames``)
+are scored against the whole ground truth, and :attr:`EvalResult.warnings` says so.
+
+trackeval is an optional dependency (``pip install 'densepeds[eval]'`` plus trackeval itself
+without its dependencies, which would add a second OpenCV: :data:`INSTALL_HINT`).
 """
 
 from __future__ import annotations
@@ -20,12 +27,15 @@ import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from densepeds import motio
 from densepeds.errors import InputError, ParameterError
+
+if TYPE_CHECKING:
+    from densepeds.video import FrameRange
 
 __all__ = ["METRICS", "EvalResult", "detect_benchmark", "evaluate", "format_results"]
 
@@ -35,6 +45,13 @@ COUNT_METRICS = frozenset(
     {"MT", "ML", "FP", "FN", "IDSW", "Frag", "GT_IDs", "IDs", "GT_Dets", "Dets"}
 )
 BENCHMARKS = ("MOT15", "MOT16", "MOT17", "MOT20")
+# trackeval declares opencv-python (the GUI build) as a dependency but scores MOTChallenge boxes
+# without it; installed with its dependencies it would sit beside our opencv-python-headless,
+# both owning cv2. The eval extra holds what trackeval imports; trackeval goes in with --no-deps.
+INSTALL_HINT = "pip install 'densepeds[eval]' && pip install --no-deps 'trackeval>=1.3'"
+# Ground-truth frames outside the tracks' span beyond which evaluate() warns (a tracker may
+# report nothing in a frame or two at the ends: tracks are confirmed on their 2nd match).
+UNCOVERED_FRAMES_WARN = 2
 COMBINED = "COMBINED"
 _TRACKER = "tracker"
 
@@ -46,6 +63,7 @@ class EvalResult:
     sequences: dict[str, dict[str, float]]
     combined: dict[str, float]
     benchmarks: dict[str, str] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
 
     def rows(self) -> list[tuple[str, dict[str, float]]]:
         """(name, metrics) per sequence in input order, then the combined row."""
@@ -81,6 +99,8 @@ class _Seq:
     length: int
     benchmark: str
     tracks: np.ndarray
+    gt: np.ndarray | None = None  # the gt rows to score, where cut to a frame range
+    warning: str | None = None
 
 
 def _seq_name(gt_dir: Path) -> str:
@@ -112,7 +132,9 @@ def _tracks_file(
     return p
 
 
-def _load_sequence(gt_dir: Path, tracks_path: Path, benchmark: str) -> _Seq:
+def _load_sequence(
+    gt_dir: Path, tracks_path: Path, benchmark: str, frames: FrameRange | None = None
+) -> _Seq:
     gt_file = gt_dir / "gt" / "gt.txt"
     if not gt_file.is_file():
         raise InputError(f"{gt_dir}: no gt/gt.txt (is it a MOTChallenge sequence folder?)")
@@ -146,9 +168,46 @@ def _load_sequence(gt_dir: Path, tracks_path: Path, benchmark: str) -> _Seq:
     if bench != "MOT15" and len(gt) and not _has_mot17_classes(gt):
         raise InputError(
             f"{gt_file}: {bench} rules need class and visibility columns (8th: class id 1-13, "
-            "9th: visibility 0-1); use benchmark='MOT15' for gt without classes"
+            "9th: visibility 0-1); for gt without classes use eval --benchmark MOT15 "
+            "(benchmark='MOT15' in Python)"
         )
-    return _Seq(name, gt_file.resolve(), length, bench, tracks)
+    if frames is not None:
+        rng = frames.clip(length)
+        assert rng.last is not None
+        if rng.first > rng.last:
+            raise ParameterError(
+                f"frame range {rng.first}:{frames.last or ''} starts past the end of {name} "
+                f"({length} frames)"
+            )
+        gt, tracks = _cut(gt, rng.first, rng.last), _cut(tracks, rng.first, rng.last)
+        length = rng.last - rng.first + 1
+        return _Seq(name, gt_file.resolve(), length, bench, tracks, gt)
+    return _Seq(name, gt_file.resolve(), length, bench, tracks, None, _coverage(gt, tracks, name))
+
+
+def _cut(rows: np.ndarray, first: int, last: int) -> np.ndarray:
+    """Rows of frames first..last, renumbered from 1."""
+    kept = rows[(rows[:, 0] >= first) & (rows[:, 0] <= last)].copy()
+    kept[:, 0] -= first - 1
+    return kept
+
+
+def _coverage(gt: np.ndarray, tracks: np.ndarray, name: str) -> str | None:
+    """A warning where the ground truth has frames outside the span of the tracks."""
+    gt_frames = np.unique(gt[:, 0]).astype(np.int64)
+    if not len(gt_frames):
+        return None
+    if not len(tracks):
+        return f"{name}: the tracks are empty; every ground-truth box is scored as missed"
+    first, last = int(tracks[:, 0].min()), int(tracks[:, 0].max())
+    outside = int(np.count_nonzero((gt_frames < first) | (gt_frames > last)))
+    if outside <= UNCOVERED_FRAMES_WARN:
+        return None
+    return (
+        f"{name}: the tracks cover frames {first}-{last} but the ground truth "
+        f"{gt_frames[0]}-{gt_frames[-1]}; its {outside} frames outside the tracks are scored as "
+        "missed (to score a partial run, pass its range: eval --frames A:B)"
+    )
 
 
 def _link_or_copy(src: Path, dst: Path) -> None:
@@ -193,6 +252,7 @@ def evaluate(
     tracks: Mapping[str, str | os.PathLike[str]] | str | os.PathLike[str],
     *,
     benchmark: str = "auto",
+    frames: str | FrameRange | None = None,
 ) -> EvalResult:
     """Score tracker output against MOTChallenge ground truth with trackeval.
 
@@ -201,8 +261,18 @@ def evaluate(
     tracks: {sequence name: tracks file}, a folder of ``<sequence>.txt``, or one file when there is
         one sequence. The sequence name is the folder's name.
     benchmark: "auto" (from the gt columns and the sequence name) or MOT15/MOT16/MOT17/MOT20.
+    frames: ``"A:B"`` (1-based, inclusive; ``A:`` and ``:B`` too) to score only those frames of
+        every sequence; None scores all, warning where the tracks cover fewer frames.
     """
-    import trackeval  # heavy import (matplotlib, scipy) only when evaluating
+    from densepeds.video import parse_frame_range
+
+    rng = parse_frame_range(frames) if frames is not None else None
+    try:
+        import trackeval  # heavy import (scipy, pycocotools) only when evaluating
+    except ImportError as err:
+        raise InputError(
+            f"evaluation needs trackeval ({err}); install it with: {INSTALL_HINT}"
+        ) from err
 
     dirs = [Path(d) for d in gt_dirs]
     if not dirs:
@@ -215,7 +285,7 @@ def evaluate(
         if (d / "seqinfo.ini").is_file():
             alias = motio.read_seqinfo(d).name
         tpath = _tracks_file(tracks, _seq_name(d), alias, single=len(dirs) == 1)
-        seqs.append(_load_sequence(d, tpath, benchmark))
+        seqs.append(_load_sequence(d, tpath, benchmark, rng))
     names = [s.name for s in seqs]
     if len(set(names)) != len(names):
         raise InputError(f"sequence folders with the same name: {names}")
@@ -236,7 +306,15 @@ def evaluate(
     ):
         root = Path(tmp)
         for s in seqs:
-            _link_or_copy(s.gt_file, root / "gt" / s.name / "gt" / "gt.txt")
+            gt_path = root / "gt" / s.name / "gt" / "gt.txt"
+            if s.gt is None:
+                _link_or_copy(s.gt_file, gt_path)
+            else:
+                gt_path.parent.mkdir(parents=True, exist_ok=True)
+                gt_path.write_text(
+                    "".join(",".join(f"{v:.10g}" for v in row) + "\n" for row in s.gt.tolist()),
+                    encoding="utf-8",
+                )
             motio.write_tracks(root / "trackers" / _TRACKER / "data" / f"{s.name}.txt", s.tracks)
         for bench in sorted({s.benchmark for s in seqs}):
             group = [s for s in seqs if s.benchmark == bench]
@@ -265,6 +343,7 @@ def evaluate(
         sequences={s: _flatten(per_seq[s]) for s in names},
         combined=_flatten(combined),
         benchmarks={s.name: s.benchmark for s in seqs},
+        warnings=[s.warning for s in seqs if s.warning],
     )
 
 

@@ -61,8 +61,10 @@ def guess_kind(layout: str, dtype: str) -> str:
     if layout == "NCHW" and dtype == "tensor(float)":
         return "osnet"
     raise ModelError(
-        f"cannot tell the re-ID contract from a {layout} {dtype} input; pass kind= one of "
-        f"{sorted(MODEL_KINDS)}"
+        f"not a re-ID model densepeds can read: its input is {layout} {dtype}, while OSNet takes "
+        "float NCHW and mars-small128 uint8 NHWC (a detector given as the re-ID model?); give "
+        "a re-ID model with --reid-model (`densepeds models` lists them), or in Python name its "
+        f"contract with ReID(kind=...) (one of {sorted(MODEL_KINDS)})"
     )
 
 
@@ -95,7 +97,8 @@ class ReID:
         if len(inputs) != 1 or len(inputs[0].shape) != 4 or len(outputs) < 1:
             raise ModelError(
                 f"{path}: expected a re-ID model with one image input [N,3,H,W] or [N,H,W,3] "
-                f"and an embedding output [N,D] (models/README.md lists the supported ones); "
+                f"and an embedding output [N,D] (a detector given as the re-ID model? give "
+                f"the re-ID model with --reid-model; `densepeds models` lists the known ones); "
                 f"got inputs {inputs}, outputs {outputs}"
             )
         shape = inputs[0].shape
@@ -109,7 +112,10 @@ class ReID:
             )
         if not all(isinstance(v, int) for v in hw):
             raise ModelError(f"{path}: input height and width must be fixed, got {shape}")
-        self.kind_name = guess_kind(layout, inputs[0].dtype) if kind == "auto" else kind
+        try:
+            self.kind_name = guess_kind(layout, inputs[0].dtype) if kind == "auto" else kind
+        except ModelError as err:
+            raise ModelError(f"{path}: {err}") from None
         self.kind = MODEL_KINDS[self.kind_name]
         if self.kind.layout != layout:
             raise ModelError(

@@ -140,8 +140,7 @@ def masks_for_boxes(
     Boxes are matched one-to-one to ``dets`` by IoU (Hungarian, at least ``min_iou``); returns
     the matched boxes carrying their detection's mask, and the indices of those boxes.
     """
-    from scipy.optimize import linear_sum_assignment
-
+    from densepeds._core import linear_sum_assignment
     from densepeds.boxes import iou_matrix
 
     target = np.asarray(boxes, np.float64).reshape(-1, 4)
@@ -152,5 +151,7 @@ def masks_for_boxes(
     good = iou[rows, cols] >= min_iou
     rows, cols = rows[good], cols[good]
     masks = [dets.masks[c] for c in cols]
-    out = Detections(target[rows], dets.scores[cols], masks, dets.mask_boxes[cols])
+    out = Detections(
+        target[rows].astype(np.float32), dets.scores[cols], masks, dets.mask_boxes[cols]
+    )
     return out, rows.astype(np.intp)

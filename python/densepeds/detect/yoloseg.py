@@ -28,7 +28,8 @@ LETTERBOX_GREY = 114
 EXPECTED = (
     "a YOLOv8/YOLO11-seg ONNX model: one image input [1,3,H,W] or [1,H,W,3] (RGB in [0,1]) and "
     "outputs [1,4+classes+masks,anchors] and prototypes [1,masks,h,w] or [1,h,w,masks] "
-    "(models/README.md says how to get one)"
+    "(a re-ID model given as the detector? give the detector with --detector-model; "
+    "`densepeds models` lists the known ones)"
 )
 
 

@@ -1,0 +1,343 @@
+"""Score a tracker configuration over the whole dev grid, from cached inputs.
+
+    python benchmarks/accuracy_grid.py                          # package defaults, every cell
+    python benchmarks/accuracy_grid.py --param max_age=90 --cnn-param output_lost=10
+    python benchmarks/accuracy_grid.py --motion cv --features bbox --cells 'MOT20*'
+    python benchmarks/accuracy_grid.py --tracker trackforge-deepsort   # a peer, same inputs
+    python benchmarks/accuracy_grid.py --write                  # every table -> benchmarks/results/
+
+The grid's cells are sequence x detection source:
+
+- ``det``: motion only on each dev sequence's public ``det/det.txt`` (six sequences);
+- ``frcnn``: motion only on the five MOT15 sequences' ``det/det-frcnn.txt``;
+- ``float`` / ``int8``: the full pipeline on the two real videos (MOT20-01-dev frames 1-214,
+  PETS09-S2L1-dev frames 1-397): the shared segmenter's detections (its float copy, or its int8
+  graph as shipped: ``dequantize=False``) and OSNet embeddings per feature kind, computed once by
+  ``benchmarks/realvideo.py``'s cache (``out/cache``) exactly as ``densepeds run`` computes them.
+
+Every cell is tracked through ``densepeds.Pipeline.step`` (the code behind ``densepeds run``: a
+det file keeps the tracker's own defaults, a CNN detector gets the pipeline's presets) and scored
+with ``densepeds.evaluate``. ``--param`` overrides a default on every cell, ``--det-param`` on the
+det-file cells only and ``--cnn-param`` on the video cells only. The summary figure is the mean
+HOTA over the cells, each cell counted once.
+"""
+
+from __future__ import annotations
+
+import argparse
+import fnmatch
+import json
+import os
+import sys
+import tempfile
+import time
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np
+import numpy.typing as npt
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import peers  # noqa: E402
+import realvideo  # noqa: E402
+
+REPO = Path(__file__).resolve().parent.parent
+SHARED = realvideo.SHARED
+DET_SEQUENCES = (
+    "MOT17-02-FRCNN",
+    "TUD-Stadtmitte",
+    "ETH-Sunnyday",
+    "KITTI-17",
+    "Venice-2",
+    "PETS09-S2L1-dev",
+)
+FRCNN_SEQUENCES = ("TUD-Stadtmitte", "ETH-Sunnyday", "KITTI-17", "Venice-2", "PETS09-S2L1-dev")
+VIDEOS = dict(realvideo.VIDEOS)  # sequence -> frame range
+# Detection source -> det file (motion only) or the segmenter's options (full pipeline).
+DET_FILES = {"det": "det.txt", "frcnn": "det-frcnn.txt"}
+DETECTOR_OPTIONS: dict[str, dict[str, Any]] = {"float": {}, "int8": {"dequantize": False}}
+FEATURE_KINDS = ("segmented", "bbox", "masked_pool")
+SHOWN = ("HOTA", "IDF1", "MOTA", "IDSW", "FP", "FN")
+Rows = npt.NDArray[np.float64]  # [M, 8]: frame, id, x1, y1, x2, y2, score, matched (1/0)
+
+
+@dataclass(frozen=True)
+class Cell:
+    seq: str
+    source: str  # a DET_FILES key or a DETECTOR_OPTIONS key
+
+    @property
+    def name(self) -> str:
+        return f"{self.seq}/{self.source}"
+
+    @property
+    def full_pipeline(self) -> bool:
+        return self.source in DETECTOR_OPTIONS
+
+
+CELLS = (
+    *(Cell(s, "det") for s in DET_SEQUENCES),
+    *(Cell(s, "frcnn") for s in FRCNN_SEQUENCES),
+    *(Cell(s, src) for src in DETECTOR_OPTIONS for s in VIDEOS),
+)
+
+
+@dataclass
+class CellData:
+    """One cell's inputs, frame by frame from the sequence's first frame."""
+
+    cell: Cell
+    seq_dir: Path
+    fps: float
+    dets: list[Any]  # densepeds.types.Detections per frame
+    embeddings: dict[str, list[npt.NDArray[np.float32]]] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Config:
+    """One tracker configuration: ours (``tracker='densepeds'``) or a peer from peers.py."""
+
+    motion: str = "frvo"
+    features: str = "default"  # on the video cells; the det-file cells are motion only
+    params: Mapping[str, Any] = field(default_factory=dict)  # every cell
+    det_params: Mapping[str, Any] = field(default_factory=dict)  # det-file cells
+    cnn_params: Mapping[str, Any] = field(default_factory=dict)  # video cells
+    tracker: str = "densepeds"
+
+    def label(self) -> str:
+        if self.tracker != "densepeds":
+            return self.tracker
+        parts = [self.motion, self.features]
+        for scope, p in (("", self.params), ("det:", self.det_params), ("cnn:", self.cnn_params)):
+            parts += [f"{scope}{k}={v}" for k, v in p.items()]
+        return " ".join(parts)
+
+    def kind(self) -> str:
+        """The appearance features of the video cells."""
+        from densepeds.pipeline import default_features
+
+        return default_features(has_images=True) if self.features == "default" else self.features
+
+    def cell_params(self, cell: Cell) -> dict[str, Any]:
+        scoped = self.cnn_params if cell.full_pipeline else self.det_params
+        return {**self.params, **scoped}
+
+
+def select_cells(patterns: Sequence[str] | None) -> list[Cell]:
+    """The cells whose name (``SEQ/SOURCE``) matches any glob pattern (all without patterns)."""
+    if not patterns:
+        return list(CELLS)
+    cells = [c for c in CELLS if any(fnmatch.fnmatch(c.name, p) for p in patterns)]
+    if not cells:
+        sys.exit(f"no cell matches {list(patterns)}; cells: {', '.join(c.name for c in CELLS)}")
+    return cells
+
+
+def load_cell(
+    cell: Cell, cache: Path, kinds: Sequence[str] = FEATURE_KINDS, quiet: bool = False
+) -> CellData:
+    """A cell's detections (and embeddings), computing a video's cache where it is missing."""
+    from densepeds import motio
+    from densepeds.types import Detections
+
+    seq_dir = SHARED / "data" / cell.seq
+    if not seq_dir.is_dir():
+        sys.exit(f"{seq_dir}: missing (the shared data beside the repo; set DENSEPEDS_SHARED)")
+    info = motio.read_seqinfo(seq_dir)
+    if cell.full_pipeline:
+        video = realvideo.load_video(
+            cell.seq, VIDEOS[cell.seq], kinds, cache, DETECTOR_OPTIONS[cell.source], quiet
+        )
+        return CellData(cell, seq_dir, info.fps, video.dets, video.embeddings)
+    det_path = seq_dir / "det" / DET_FILES[cell.source]
+    if not det_path.is_file():
+        sys.exit(f"{det_path}: missing")
+    by_frame = motio.read_detections(det_path)
+    dets = [by_frame.get(f) or Detections.empty() for f in range(1, info.length + 1)]
+    return CellData(cell, seq_dir, info.fps, dets)
+
+
+def load_grid(
+    cells: Iterable[Cell], cache: Path, kinds: Sequence[str] = FEATURE_KINDS, quiet: bool = False
+) -> list[CellData]:
+    return [load_cell(c, cache, kinds, quiet) for c in cells]
+
+
+def _pipeline(data: CellData, config: Config, tracker: Any = None) -> Any:
+    from densepeds.pipeline import DETECTION_OPTIONS, Pipeline
+
+    detector = "yoloseg" if data.cell.full_pipeline else None
+    if tracker is not None:
+        detection = {
+            k: v for k, v in config.cell_params(data.cell).items() if k in DETECTION_OPTIONS
+        }
+        return Pipeline(detector, features="none", tracker=tracker, **detection)
+    features = config.kind() if data.cell.full_pipeline else "none"
+    return Pipeline(
+        detector, motion=config.motion, features=features, **config.cell_params(data.cell)
+    )
+
+
+def track_cell(data: CellData, config: Config) -> Rows:
+    """Run one configuration on one cell; rows as in ``Rows``."""
+    kind = config.kind() if data.cell.full_pipeline else "none"
+    if config.tracker == "densepeds":
+        pipe = _pipeline(data, config)
+    else:
+        name, fps = config.tracker, data.fps
+        pipe = _pipeline(
+            data, config, tracker=peers.PipelineTracker(lambda: peers.make_tracker(name, fps))
+        )
+    out: list[Rows] = []
+    for k, dets in enumerate(data.dets):
+        emb = None if kind == "none" else data.embeddings[kind][k]
+        tracks = pipe.step(None, dets, embeddings=emb)
+        if len(tracks.ids):
+            out.append(
+                np.c_[
+                    np.full(len(tracks.ids), k + 1),
+                    tracks.ids,
+                    tracks.boxes,
+                    tracks.scores,
+                    tracks.det_index >= 0,
+                ]
+            )
+    return np.concatenate(out) if out else np.zeros((0, 8))
+
+
+def score_cell(data: CellData, rows: Rows, tmp: Path) -> dict[str, float]:
+    from densepeds.evaluate import evaluate
+    from densepeds.motio import write_tracks
+
+    path = tmp / data.cell.source / f"{data.cell.seq}.txt"
+    write_tracks(path, rows[:, :7])
+    return evaluate([data.seq_dir], path).combined
+
+
+def runs_on(config: Config, cell: Cell) -> bool:
+    """Whether the configuration can track the cell (a peer that needs embeddings needs a video)."""
+    return cell.full_pipeline or config.tracker not in peers.NEEDS_EMBEDDINGS
+
+
+def score_grid(
+    grid: Sequence[CellData],
+    config: Config,
+    keep_rows: dict[str, Rows] | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> dict[str, dict[str, float]]:
+    """Metrics per cell name for one configuration (tracks kept in ``keep_rows`` if given)."""
+    out: dict[str, dict[str, float]] = {}
+    with tempfile.TemporaryDirectory(prefix="densepeds-grid-") as tmp:
+        for data in grid:
+            if not runs_on(config, data.cell):
+                continue
+            rows = track_cell(data, config)
+            if keep_rows is not None:
+                keep_rows[data.cell.name] = rows
+            out[data.cell.name] = score_cell(data, rows, Path(tmp))
+            if progress is not None:
+                m = out[data.cell.name]
+                progress(f"{data.cell.name}: HOTA {m['HOTA']:.2f} IDF1 {m['IDF1']:.2f}")
+    return out
+
+
+def mean_metric(result: Mapping[str, Mapping[str, float]], metric: str = "HOTA") -> float:
+    return float(np.mean([m[metric] for m in result.values()]))
+
+
+def _fmt(metric: str, v: float) -> str:
+    return f"{v:.0f}" if metric in ("IDSW", "FP", "FN", "MT", "ML", "IDs") else f"{v:.2f}"
+
+
+def cell_table(result: Mapping[str, Mapping[str, float]], shown: Sequence[str] = SHOWN) -> str:
+    lines = ["| cell | " + " | ".join(shown) + " |", "|---|" + "---:|" * len(shown)]
+    for name, m in result.items():
+        lines.append(f"| {name} | " + " | ".join(_fmt(k, m[k]) for k in shown) + " |")
+    means = " | ".join(_fmt(k, float(np.mean([m[k] for m in result.values()]))) for k in shown)
+    lines.append(f"| mean of {len(result)} cells | {means} |")
+    return "\n".join(lines) + "\n"
+
+
+def parse_value(text: str) -> Any:
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return {"true": True, "false": False}.get(text.lower(), text)
+
+
+def parse_params(items: Sequence[str]) -> dict[str, Any]:
+    out = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep:
+            sys.exit(f"a parameter is KEY=VALUE, got {item!r}")
+        out[key] = parse_value(value)
+    return out
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument("--cache", type=Path, default=REPO / "out" / "cache")
+    ap.add_argument("--cells", nargs="+", help="glob patterns over SEQ/SOURCE (default: all)")
+    ap.add_argument("--tracker", default="densepeds", help=f"densepeds or {', '.join(peers.PEERS)}")
+    ap.add_argument("--motion", default="frvo", choices=peers.MOTIONS)
+    ap.add_argument("--features", default="default", help="video cells' appearance features")
+    ap.add_argument("--param", action="append", default=[], help="KEY=VALUE on every cell")
+    ap.add_argument("--det-param", action="append", default=[], help="KEY=VALUE, det-file cells")
+    ap.add_argument("--cnn-param", action="append", default=[], help="KEY=VALUE, video cells")
+    ap.add_argument("--json", type=Path, help="also write the per-cell metrics here")
+    ap.add_argument("--write", action="store_true", help="regenerate every table (see module doc)")
+    ap.add_argument("--results", type=Path, help="with --write: write here instead (a quick look)")
+    ap.add_argument(
+        "--tables",
+        nargs="+",
+        help="with --write: only these (peers loo visibility claims scene realvideo)",
+    )
+    ap.add_argument("--quiet", "-q", action="store_true")
+    args = ap.parse_args(argv)
+    if args.write:
+        import accuracy_tables
+
+        return accuracy_tables.write_all(
+            args.cache,
+            quiet=args.quiet,
+            out=args.results or accuracy_tables.RESULTS,
+            cells=select_cells(args.cells),
+            tables=args.tables or accuracy_tables.TABLES,
+        )
+    config = Config(
+        motion=args.motion,
+        features=args.features,
+        params=parse_params(args.param),
+        det_params=parse_params(args.det_param),
+        cnn_params=parse_params(args.cnn_param),
+        tracker=args.tracker,
+    )
+    cells = select_cells(args.cells)
+    t0 = time.perf_counter()
+    kinds = sorted({*FEATURE_KINDS, config.kind()} - {"none"})
+    grid = load_grid(cells, args.cache, kinds, args.quiet)
+    t1 = time.perf_counter()
+    log = None if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
+    result = score_grid(grid, config, progress=log)
+    print(f"{config.label()}: mean HOTA {mean_metric(result):.2f} over {len(result)} cells")
+    print(cell_table(result))
+    print(
+        f"(loaded in {t1 - t0:.1f} s, tracked and scored in {time.perf_counter() - t1:.1f} s)",
+        file=sys.stderr,
+    )
+    if args.json:
+        args.json.write_text(json.dumps({"config": config.label(), "cells": result}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
