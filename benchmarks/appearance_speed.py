@@ -1,6 +1,6 @@
 """Tracker update time with appearance embeddings, on one thread, as the crowd grows.
 
-    python benchmarks/appearance_speed.py [--people 180,700,1500] [--frames 130] [--dim 512]
+    python benchmarks/appearance_speed.py [--people 200,800,1670] [--frames 30] [--dim 512]
 
 Inputs: synthetic crowds (people walking in random directions on a 1920x1080 view, box jitter,
 10% missed detections) where each person has a fixed random unit embedding
@@ -71,7 +71,7 @@ def time_updates(people: int, frames: int, dim: int) -> tuple[float, float, floa
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--people", default="180,700,1500")
+    ap.add_argument("--people", default="200,800,1670", help="about 180, 720, 1,500 detections")
     ap.add_argument("--frames", type=int, default=30, help="timed frames after the warm-up")
     ap.add_argument("--dim", type=int, default=512)
     args = ap.parse_args()

@@ -5,7 +5,7 @@
 //! face, along the motion) and `w = ellipse_w_scale * w` (the shoulders, across it); the agent sits
 //! at the box centre. Velocities are in pixels per frame.
 
-use crate::cost::{box_from_centre, centre, dot, normalise, BBox};
+use crate::cost::{box_from_centre, centre, max_dot, normalise, BBox};
 use crate::params::TrackerParams;
 use nalgebra::Vector2;
 use std::collections::VecDeque;
@@ -248,12 +248,7 @@ impl Gallery {
         if d == 0 {
             return 1.0;
         }
-        let best = self
-            .data
-            .chunks_exact(d)
-            .map(|g| dot(g, e))
-            .fold(f32::NEG_INFINITY, f32::max);
-        (1.0 - f64::from(best)).max(0.0)
+        (1.0 - f64::from(max_dot(&self.data, e))).max(0.0)
     }
 }
 
