@@ -93,6 +93,7 @@ class CellData:
     cell: Cell
     seq_dir: Path
     fps: float
+    size: tuple[int, int]  # (width, height) from seqinfo.ini, as `densepeds run` gives it
     dets: list[Any]  # densepeds.types.Detections per frame
     embeddings: dict[str, list[npt.NDArray[np.float32]]] = field(default_factory=dict)
 
@@ -152,13 +153,14 @@ def load_cell(
         video = realvideo.load_video(
             cell.seq, VIDEOS[cell.seq], kinds, cache, DETECTOR_OPTIONS[cell.source], quiet
         )
-        return CellData(cell, seq_dir, info.fps, video.dets, video.embeddings)
+        size = (info.width, info.height)
+        return CellData(cell, seq_dir, info.fps, size, video.dets, video.embeddings)
     det_path = seq_dir / "det" / DET_FILES[cell.source]
     if not det_path.is_file():
         sys.exit(f"{det_path}: missing")
     by_frame = motio.read_detections(det_path)
     dets = [by_frame.get(f) or Detections.empty() for f in range(1, info.length + 1)]
-    return CellData(cell, seq_dir, info.fps, dets)
+    return CellData(cell, seq_dir, info.fps, (info.width, info.height), dets)
 
 
 def load_grid(
@@ -192,6 +194,7 @@ def track_cell(data: CellData, config: Config) -> Rows:
         pipe = _pipeline(
             data, config, tracker=peers.PipelineTracker(lambda: peers.make_tracker(name, fps))
         )
+    pipe.set_image_size(*data.size)
     out: list[Rows] = []
     for k, dets in enumerate(data.dets):
         emb = None if kind == "none" else data.embeddings[kind][k]

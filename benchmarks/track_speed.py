@@ -4,6 +4,10 @@ Inputs, identical for every tracker: MOT17-02-FRCNN's public detections (about 3
 frame) and synthetic crowds of 80 and 200 people (walking in four crossing streams, box jitter,
 10% missed detections). Each tracker is called once per frame through the adapters in peers.py
 (NumPy in, NumPy out, conversions included); the figures are the median and p95 over frames.
+The trackers take turns, one whole run of an input each, `--repeat` times, so that all see the
+same machine load (printed before and after); ours step their motion model on `--threads`
+threads (default 1, the calling thread). The last column of each input is the median over
+trackforge ByteTrack's median on the same input.
 
     python benchmarks/track_speed.py                 # all trackers, all inputs
     python benchmarks/track_speed.py --frames 200 --repeat 3
@@ -12,6 +16,7 @@ frame) and synthetic crowds of 80 and 200 people (walking in four crossing strea
 from __future__ import annotations
 
 import argparse
+import os
 import platform
 import sys
 import time
@@ -62,16 +67,19 @@ def mot_frames(seq: Path) -> Frames:
     ]
 
 
-def time_tracker(name: str, frames: Frames, fps: float, repeat: int) -> np.ndarray:
-    """Milliseconds per update call, every frame of every repetition (fresh tracker each time)."""
+def run_once(name: str, frames: Frames, fps: float, params: dict[str, object]) -> list[float]:
+    """Milliseconds per update call over one run of a fresh tracker."""
+    tracker = peers.make_tracker(name, fps, params if name.startswith("densepeds-") else None)
     times = []
-    for _ in range(repeat):
-        tracker = peers.make_tracker(name, fps)
-        for boxes, scores in frames:
-            t0 = time.perf_counter()
-            tracker.update(boxes, scores)
-            times.append((time.perf_counter() - t0) * 1e3)
-    return np.array(times)
+    for boxes, scores in frames:
+        t0 = time.perf_counter()
+        tracker.update(boxes, scores)
+        times.append((time.perf_counter() - t0) * 1e3)
+    return times
+
+
+def load() -> str:
+    return "load average " + " / ".join(f"{x:.2f}" for x in os.getloadavg())
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -80,6 +88,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--frames", type=int, default=300, help="frames of each synthetic crowd")
     ap.add_argument("--repeat", type=int, default=3, help="runs per tracker and input")
     ap.add_argument("--trackers", nargs="+", default=list(TRACKERS))
+    ap.add_argument("--threads", type=int, default=1, help="our motion model's threads")
     args = ap.parse_args(argv)
 
     inputs: dict[str, tuple[Frames, float]] = {}
@@ -91,16 +100,28 @@ def main(argv: list[str] | None = None) -> int:
     for n in (80, 200):
         inputs[f"synthetic {n} people"] = (synthetic_crowd(n, args.frames, seed=n), 30.0)
 
-    print(f"Python {platform.python_version()}, {platform.machine()}; repeat={args.repeat}")
+    print(f"Python {platform.python_version()}, {platform.machine()}, {os.cpu_count()} cores")
     print(", ".join(f"{k} {v}" for k, v in peers.versions().items()))
+    print(f"repeat={args.repeat}, threads={args.threads}; before: {load()}")
+    params: dict[str, object] = {"threads": args.threads}
+    times: dict[tuple[str, str], list[float]] = {(n, k): [] for n in args.trackers for k in inputs}
+    for key, (frames, fps) in inputs.items():
+        for _ in range(args.repeat):
+            for name in args.trackers:
+                times[name, key] += run_once(name, frames, fps, params)
+    print(f"after: {load()}")
     print()
-    print("| tracker | " + " | ".join(f"{k} median / p95 ms" for k in inputs) + " |")
-    print("|---|" + "---:|" * len(inputs))
+    ref = "trackforge-bytetrack"
+    print("| tracker | " + " | ".join(f"{k} median / p95 ms | / ByteTrack" for k in inputs) + " |")
+    print("|---|" + "---:|---:|" * len(inputs))
     for name in args.trackers:
         cells = []
-        for frames, fps in inputs.values():
-            t = time_tracker(name, frames, fps, args.repeat)
-            cells.append(f"{np.median(t):.3f} / {np.percentile(t, 95):.3f}")
+        for key in inputs:
+            t = np.array(times[name, key])
+            ratio = "-"
+            if (ref, key) in times:
+                ratio = f"{np.median(t) / np.median(times[ref, key]):.2f}"
+            cells.append(f"{np.median(t):.3f} / {np.percentile(t, 95):.3f} | {ratio}")
         print(f"| {name} | " + " | ".join(cells) + " |", flush=True)
     return 0
 

@@ -101,6 +101,7 @@ def _scene_cell(scene: Scene, tmp: Path) -> grid.CellData:
         grid.Cell(scene.name, "scene"),
         seq,
         scene.fps,
+        (scene.config.width, scene.config.height),
         [d if d is not None else Detections.empty() for d in dets],
     )
 
@@ -145,6 +146,7 @@ def test_a_det_cell_scores_the_same_through_the_pipeline_and_the_tracker(tmp_pat
     via_grid = grid.score_grid([data], grid.Config())["TUD-Stadtmitte/det"]
     dets = read_detections(seq / "det" / "det.txt")
     tracker = Tracker()
+    tracker.set_image_size(*data.size)
     rows = []
     for k in range(1, len(data.dets) + 1):
         d = dets.get(k)

@@ -113,15 +113,46 @@ def test_threads_give_the_same_velocities(motion: str) -> None:
     assert not np.allclose(one, vel)  # the crowd constrains its agents
 
 
+def _step_large_crowd(threads: int) -> np.ndarray:
+    """FRVO on 1,500 agents (15,000 agent-neighbour pairs: enough to spread over threads)."""
+    rng = np.random.default_rng(4)
+    n = 1500
+    pos = rng.uniform(0.0, 25.0 * np.sqrt(n), size=(n, 2))
+    vel, pref = rng.uniform(-2.0, 2.0, size=(2, n, 2))
+    axes = np.column_stack([rng.uniform(10, 30, n), rng.uniform(20, 50, n)])
+    new_vel, _ = _core.step_crowd(pos, vel, pref, axes, max_speed=4.0, threads=threads)
+    return new_vel
+
+
+def _forked_child_step(expected: np.ndarray) -> None:
+    np.testing.assert_array_equal(_step_large_crowd(0), expected)
+
+
+def test_forked_child_steps_without_the_parents_threads() -> None:
+    # The parent's thread pool does not exist in a forked child: the child's every-core step
+    # must run on its own thread and finish, not wait for workers that are not there.
+    import multiprocessing
+
+    expected = _step_large_crowd(1)
+    np.testing.assert_array_equal(_step_large_crowd(0), expected)  # makes the parent's pool
+    child = multiprocessing.get_context("fork").Process(target=_forked_child_step, args=(expected,))
+    child.start()
+    child.join(timeout=60)
+    if child.is_alive():
+        child.kill()
+        pytest.fail("the forked child's step hung")
+    assert child.exitcode == 0
+
+
 def test_concurrent_callers_share_the_threads_safely() -> None:
-    # Python threads stepping at once (the GIL is released): every-core steps share one set
-    # of helper threads, and a caller that finds it busy runs alone. Each must still get the
+    # Python threads stepping at once (the GIL is released): every-core steps share the
+    # process's thread pool (crowds from 1,100 agents spread over it). Each must still get the
     # one-thread velocities.
     from concurrent.futures import ThreadPoolExecutor
 
     rng = np.random.default_rng(5)
     crowds = []
-    for n in (60, 200, 400, 900):
+    for n in (60, 200, 1100, 2000):
         pos = rng.uniform(0.0, 25.0 * np.sqrt(n), size=(n, 2))
         vel, pref = rng.uniform(-2.0, 2.0, size=(2, n, 2))
         axes = np.column_stack([rng.uniform(10, 30, n), rng.uniform(20, 50, n)])

@@ -33,11 +33,12 @@ def step_crowd(
     axes[:, 0] is the ellipse extent along the direction of motion (l), axes[:, 1] across it (w),
     in pixels; velocities in pixels per frame. The keyword parameters are the tracker's motion
     parameters, with the same ranges; None takes their defaults (``PARAMS``). threads: 0 spreads
-    a large crowd's step over every core (the calling thread and helper threads started once per
-    process), 1 keeps it on the calling thread, n uses n threads in all; the velocities are the
-    same whatever the number. Returns (new_velocities, new_positions) with new_positions =
-    positions + dt * new_velocities. Raises densepeds.errors.InputError for arrays of the wrong
-    shape or dtype (complex included) and ParameterError for bad parameters (both ValueErrors).
+    a large crowd's step (10,000 agent-neighbour pairs or more) over every core (a thread pool
+    made once per process), 1 keeps it on the calling thread, n uses at most n threads; the
+    velocities are the same whatever the number. Returns (new_velocities, new_positions) with
+    new_positions = positions + dt * new_velocities. Raises densepeds.errors.InputError for
+    arrays of the wrong shape or dtype (complex included) and ParameterError for bad parameters
+    (both ValueErrors).
     Releases the GIL.
     """
 
@@ -83,6 +84,9 @@ class TrackerKwargs(TypedDict, total=False):
     ellipse_l_scale: float
     ellipse_w_scale: float
     output_lost: int
+    occluded_output: int
+    occlusion_coverage: float
+    relative_scores: bool
     neighbor_radius: float
     max_neighbors: int
     time_horizon: float
@@ -123,6 +127,9 @@ class Tracker:
         ellipse_l_scale: float = 0.15,
         ellipse_w_scale: float = 0.15,
         output_lost: int = 5,
+        occluded_output: int = 10,
+        occlusion_coverage: float = 0.5,
+        relative_scores: bool = True,
         neighbor_radius: float = 150.0,
         max_neighbors: int = 10,
         time_horizon: float = 5.0,
@@ -142,6 +149,7 @@ class Tracker:
         npt.NDArray[np.float32],
         npt.NDArray[np.int64],
     ]: ...
+    def set_image_size(self, width: float, height: float) -> None: ...
     def reset(self) -> None: ...
     @property
     def params(self) -> dict[str, str | float | int | bool]: ...

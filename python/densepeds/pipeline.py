@@ -296,6 +296,7 @@ class Pipeline:
         """``step`` without the frame counter (used by ``run`` which counts itself)."""
         if frame is not None:
             check_frame(frame)
+            self.set_image_size(frame.shape[1], frame.shape[0])
         if detections is None:
             if frame is None:
                 raise InputError("step() needs a frame, detections, or both")
@@ -332,6 +333,13 @@ class Pipeline:
             index[matched] = kept[index[matched]]
             tracks = tracks._replace(det_index=index)
         return tracks
+
+    def set_image_size(self, width: int, height: int) -> None:
+        """Tells the tracker the image size (so that it can tell people who left the image from
+        hidden ones); ``step`` does it from the frame, ``run`` from the source."""
+        set_size = getattr(self.tracker, "set_image_size", None)
+        if set_size is not None:
+            set_size(width, height)
 
     def _kept(self, dets: Detections) -> npt.NDArray[np.intp]:
         """Indices of the detections tracked: score floor, then duplicate suppression."""
@@ -387,6 +395,9 @@ class Pipeline:
         src = source if isinstance(source, FrameSource) else open_source(source)
         rng = parse_frame_range(frames)
         dets = self.source_detections(src, detections)
+        size = getattr(src, "size", None)
+        if size is not None:
+            self.set_image_size(*size)
         it = src.frames(rng)
         while True:
             with self.times.stage("decode"):

@@ -87,6 +87,8 @@ _CNN_APPEARANCE: dict[str, float | int | bool] = {
     "recovery": False,
     # Box sizes of a tiled detector jitter from frame to frame: smooth them more.
     "size_smoothing": 0.7,
+    # The score cuts below are stated on the detector's own scale (its floor is known).
+    "relative_scores": False,
 }
 
 PRESETS: Mapping[str, Preset] = MappingProxyType(

@@ -61,6 +61,15 @@ ellipse_w_scale         float  0.15     (0, inf)         FRVO ellipse extent acr
 output_lost             int    5        0..=4294967295   confirmed tracks are also reported, at
                                                          their prediction, this many frames
                                                          unmatched
+occluded_output         int    10       0..=4294967295   an unmatched track covered by nearer
+                                                         detections is reported up to this many
+                                                         frames; one mostly outside the image
+                                                         (set_image_size) is deleted (0: off)
+occlusion_coverage      float  0.5      [0, 1]           covered fraction of an unmatched track's
+                                                         predicted box that means occluded
+relative_scores         bool   True     True|False       score thresholds apply to scores placed in
+                                                         the range seen so far, from the detector's
+                                                         floor (lowest score) to the highest
 neighbor_radius         float  150.0    (0, inf)         motion model: only agents closer than this
                                                          (pixels) constrain each other
 max_neighbors           int    10       >= 1             motion model: at most this many neighbours
@@ -77,15 +86,20 @@ sf_strength             float  1.0      [0, inf)         social forces: repulsio
                                                          contact, pixels per frame squared
 sf_range                float  10.0     (0, inf)         social forces: repulsion range, pixels
 threads                 int    0        0..=1024         threads for a crowd step (0: every core,
-                                                         from 300 agent-neighbour pairs; 1:
+                                                         from 10,000 agent-neighbour pairs; 1:
                                                          caller's)
 ======================  =====  =======  ===============  ===========================================
 .. end of generated parameters
 
 Score thresholds are for scores in [0, 1], as our detectors give and as
 ``densepeds.motio.read_detections`` maps det files by default (files already in [0, 1] untouched,
-others min-max rescaled; see ``motio.score_scale``). Scores of any range are accepted and compared
-as they are, so pass thresholds that suit them (or ``-inf``) when feeding unmapped scores.
+others min-max rescaled; see ``motio.score_scale``). With ``relative_scores`` (the default) a score
+is first placed in the range of scores seen so far: ``(s - lo) / (hi - lo)``, ``lo`` the lowest
+score seen (taken as 0 or less until 30 scores have been seen) and ``hi`` the highest (at least
+1), so that the thresholds count from the floor of a detector that cuts its own scores (e.g. a
+Faster R-CNN file holding only scores from 0.5). The CNN presets state their cuts on their
+detector's own scale and switch it off. Without it, scores of any range are compared as they are,
+so pass thresholds that suit them (or ``-inf``) when feeding unmapped scores.
 """
 
 from __future__ import annotations
@@ -162,6 +176,15 @@ class Tracker:
         e = None if embeddings is None else _as_float_array(embeddings, "embeddings")
         ids, out_boxes, out_scores, det_index = self._core.update(b, s, e)
         return Tracks(ids, out_boxes, out_scores, det_index)
+
+    def set_image_size(self, width: float, height: float) -> None:
+        """The image size in pixels: an unmatched track whose predicted box lies mostly outside
+        it has left and is deleted. Without it no track is judged to have left (they live
+        ``max_age`` frames). Kept across ``reset``."""
+        try:
+            self._core.set_image_size(float(width), float(height))
+        except ValueError as err:
+            raise InputError(str(err)) from None
 
     def reset(self) -> None:
         """Forgets all tracks; ids restart at 1."""

@@ -4,6 +4,7 @@
 pub mod cost;
 pub mod error;
 pub mod lap;
+pub mod occlusion;
 pub mod params;
 mod track;
 pub mod tracker;

@@ -417,6 +417,12 @@ tracker_params! {
             "FRVO ellipse extent across the motion = scale * box width (small: overlap is occlusion)";
         output_lost: u32 = 5, ints(0, U32_MAX),
             "confirmed tracks are also reported, at their prediction, this many frames unmatched";
+        occluded_output: u32 = 10, ints(0, U32_MAX),
+            "an unmatched track covered by nearer detections is reported up to this many frames; one mostly outside the image (set_image_size) is deleted (0: off)";
+        occlusion_coverage: f64 = 0.5, UNIT,
+            "covered fraction of an unmatched track's predicted box that means occluded";
+        relative_scores: bool = true, Range::Bool,
+            "score thresholds apply to scores placed in the range seen so far, from the detector's floor (lowest score) to the highest";
     }
     motion {
         neighbor_radius: f64, POSITIVE,
@@ -436,7 +442,7 @@ tracker_params! {
         sf_range: f64, POSITIVE,
             "social forces: repulsion range, pixels";
         threads: usize, ints(0, frvo::model::MAX_THREADS as u64),
-            "threads for a crowd step (0: every core, from 300 agent-neighbour pairs; 1: caller's)";
+            "threads for a crowd step (0: every core, from 10,000 agent-neighbour pairs; 1: caller's)";
     }
 }
 
@@ -458,7 +464,8 @@ impl TrackerParams {
     /// optimally; no score thresholds, no second pass, no recovery, no size smoothing, only
     /// matched tracks reported). Equivalent to the keyword arguments
     /// `det_threshold=-inf, new_track_threshold=-inf, second_pass=False, recovery=False,
-    /// size_smoothing=0, output_lost=0`. Other fields keep their defaults.
+    /// size_smoothing=0, output_lost=0, occluded_output=0, relative_scores=False`. Other fields
+    /// keep their defaults.
     pub fn pure() -> Self {
         Self {
             det_threshold: f64::NEG_INFINITY,
@@ -467,6 +474,8 @@ impl TrackerParams {
             recovery: false,
             size_smoothing: 0.0,
             output_lost: 0,
+            occluded_output: 0,
+            relative_scores: false,
             ..Self::default()
         }
     }

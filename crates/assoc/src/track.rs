@@ -32,6 +32,8 @@ pub(crate) struct Track {
     history: VecDeque<(u64, Vector2<f64>)>,
     pub hits: u32,
     pub time_since_update: u32,
+    /// Unmatched this frame and hidden behind people nearer the camera.
+    pub occluded: bool,
     pub score: f64,
     /// Detection matched in the current frame.
     pub det_index: Option<usize>,
@@ -68,6 +70,7 @@ impl Track {
             history: VecDeque::from([(frame, c)]),
             hits: 1,
             time_since_update: 0,
+            occluded: false,
             score,
             det_index: Some(det_index),
             gallery: Gallery::new(gallery_size),
@@ -148,6 +151,7 @@ impl Track {
         self.last_obs_frame = frame;
         self.hits += 1;
         self.time_since_update = 0;
+        self.occluded = false;
         self.score = score;
         self.det_index = Some(det_index);
         if let Some(e) = embedding {

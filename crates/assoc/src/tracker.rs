@@ -8,10 +8,13 @@
 //! 3. ByteTrack-style second pass: low-score detections can extend (never start) tracks;
 //! 4. OC-SORT-style recovery of lost tracks by their last observed box;
 //!
-//! then update, age and delete tracks and start new ones.
+//! then update, age and delete tracks and start new ones. An unmatched confirmed track is
+//! classified from the scene ([`crate::occlusion`]): occluded ones keep being predicted among
+//! their neighbours and reported, those that left the image are deleted.
 
 use crate::cost::{centre, iou, normalise, validate_boxes, BBox};
 use crate::lap::{Edge, SparseMatcher};
+use crate::occlusion::{classify, Unmatched};
 use crate::params::TrackerParams;
 use crate::track::Track;
 use crate::TrackError;
@@ -45,6 +48,10 @@ pub struct Tracker {
     frame: u64,
     emb_dim: Option<usize>,
     matcher: SparseMatcher,
+    /// Image size `[width, height]` when the caller gave it.
+    image_size: Option<[f64; 2]>,
+    /// Scores seen since the start: how many, the lowest and the highest.
+    seen_scores: (usize, f64, f64),
 }
 
 impl std::fmt::Debug for Tracker {
@@ -100,6 +107,8 @@ impl Tracker {
             frame: 0,
             emb_dim: None,
             matcher: SparseMatcher::default(),
+            image_size: None,
+            seen_scores: (0, f64::INFINITY, f64::NEG_INFINITY),
         })
     }
 
@@ -113,7 +122,21 @@ impl Tracker {
         self.next_id = 1;
         self.frame = 0;
         self.emb_dim = None;
+        self.seen_scores = (0, f64::INFINITY, f64::NEG_INFINITY);
         self.model = make_model(self.params.motion, self.params.motion_params);
+    }
+
+    /// The image size `(width, height)` in pixels: with it, an unmatched track whose predicted
+    /// box lies mostly outside the image is deleted (it left); without it, no track is judged to
+    /// have left. Kept across [`Tracker::reset`].
+    pub fn set_image_size(&mut self, width: f64, height: f64) -> Result<(), TrackError> {
+        if !(width > 0.0 && height > 0.0 && width.is_finite() && height.is_finite()) {
+            return Err(TrackError::InvalidInput(format!(
+                "image size must be positive and finite, got {width} x {height}"
+            )));
+        }
+        self.image_size = Some([width, height]);
+        Ok(())
     }
 
     /// Frames processed since creation or the last reset.
@@ -210,7 +233,8 @@ impl Tracker {
             }
         }
 
-        let high = |j: usize| scores[j] >= p.det_threshold;
+        let level = self.score_levels(scores, p.relative_scores);
+        let high = |j: usize| level[j] >= p.det_threshold;
         let nt = self.tracks.len();
         let mut track_det: Vec<Option<usize>> = vec![None; nt];
         let mut det_track: Vec<Option<usize>> = vec![None; n];
@@ -292,7 +316,7 @@ impl Tracker {
         // Stage 3: low-score detections for tracks unmatched for at most `low_max_age` frames.
         if p.second_pass {
             let low_index = DetIndex::new(&dets, |j| {
-                scores[j] >= p.low_threshold && scores[j] < p.det_threshold
+                level[j] >= p.low_threshold && level[j] < p.det_threshold
             });
             iou_edges(
                 &self.tracks,
@@ -326,6 +350,27 @@ impl Tracker {
             record(&pairs, &mut track_det, &mut det_track);
         }
 
+        // Unmatched confirmed tracks: occluded, left the image, or neither.
+        let mut left_image = vec![false; nt];
+        if p.occluded_output > 0 {
+            // The people seen this frame: detections matched to tracks and confident ones.
+            let scene: Vec<BBox> = (0..n)
+                .filter(|&j| det_track[j].is_some() || high(j))
+                .map(|j| dets[j])
+                .collect();
+            for (i, t) in self.tracks.iter_mut().enumerate() {
+                t.occluded = false;
+                if track_det[i].is_some() || !t.confirmed {
+                    continue;
+                }
+                match classify(&t.predicted, &scene, self.image_size, p.occlusion_coverage) {
+                    Unmatched::Occluded => t.occluded = true,
+                    Unmatched::LeftImage => left_image[i] = true,
+                    Unmatched::Uncovered => {}
+                }
+            }
+        }
+
         // Update matched tracks, coast the others, drop the dead.
         for (i, t) in self.tracks.iter_mut().enumerate() {
             match track_det[i] {
@@ -344,7 +389,7 @@ impl Tracker {
         self.tracks.retain(|t| {
             let keep = match track_det[k] {
                 Some(_) => true,
-                None => t.confirmed && t.time_since_update <= p.max_age,
+                None => !left_image[k] && t.confirmed && t.time_since_update <= p.max_age,
             };
             k += 1;
             keep
@@ -352,7 +397,7 @@ impl Tracker {
 
         // New tracks from unmatched high-score detections.
         for j in 0..n {
-            if det_track[j].is_none() && high(j) && scores[j] >= p.new_track_threshold {
+            if det_track[j].is_none() && high(j) && level[j] >= p.new_track_threshold {
                 let mut t = Track::new(j, dets[j], scores[j], frame, emb_row(j), p.gallery_size);
                 if p.n_init <= 1 {
                     t.confirmed = true;
@@ -367,11 +412,43 @@ impl Tracker {
         Ok(self.outputs())
     }
 
+    /// The scores the thresholds are compared with: as given, or (`relative`) placed in the range
+    /// of scores seen so far, this frame's included: `(s - lo) / (hi - lo)` with `lo` the lowest
+    /// score seen (0 at most until [`WARM_UP_SCORES`] have been seen) and `hi` the highest (1 at
+    /// least), so that a detector whose scores start at its own threshold (e.g. 0.5) is read
+    /// from that floor.
+    fn score_levels(&mut self, scores: &[f64], relative: bool) -> Vec<f64> {
+        if !relative {
+            return scores.to_vec();
+        }
+        let (count, lo, hi) = &mut self.seen_scores;
+        for &s in scores {
+            *lo = lo.min(s);
+            *hi = hi.max(s);
+        }
+        *count += scores.len();
+        let lo = if *count < WARM_UP_SCORES {
+            lo.min(0.0)
+        } else {
+            *lo
+        };
+        let hi = hi.max(1.0);
+        if hi <= lo || !lo.is_finite() || !hi.is_finite() {
+            return scores.to_vec();
+        }
+        scores.iter().map(|&s| (s - lo) / (hi - lo)).collect()
+    }
+
     fn outputs(&self) -> Vec<TrackOutput> {
         let mut out: Vec<TrackOutput> = self
             .tracks
             .iter()
-            .filter(|t| t.confirmed && t.time_since_update <= self.params.output_lost)
+            .filter(|t| {
+                let p = &self.params;
+                t.confirmed
+                    && (t.time_since_update <= p.output_lost
+                        || (t.occluded && t.time_since_update <= p.occluded_output))
+            })
             .map(|t| TrackOutput {
                 id: t.id,
                 bbox: t.bbox,
@@ -383,6 +460,9 @@ impl Tracker {
         out
     }
 }
+
+/// Scores to see before the lowest of them is taken for the detector's floor.
+pub const WARM_UP_SCORES: usize = 30;
 
 /// Whether the centre of `b` lies within `r` of `c`.
 #[inline]

@@ -347,3 +347,158 @@ fn parameters_are_validated_and_settable_by_name() {
         p.set(spec.name, v).unwrap();
     }
 }
+
+/// Constant velocity, tracks confirmed at once, lost tracks reported for one frame, scene
+/// reasoning on with `occluded_output` frames.
+fn occlusion_params(occluded_output: u32) -> TrackerParams {
+    TrackerParams {
+        n_init: 1,
+        output_lost: 1,
+        occluded_output,
+        size_smoothing: 0.0,
+        ..cv_params()
+    }
+}
+
+/// A far person (feet at y = 150) walks right at 4 px/frame behind a near, bigger person
+/// standing at x = 200 (feet at y = 230); `seen(k)` says whether the far one is detected.
+fn behind_scene(t: &mut Tracker, frames: u32, seen: impl Fn(u32) -> bool) -> Vec<Vec<TrackOutput>> {
+    let near = [170.0, 40.0, 230.0, 230.0];
+    (0..frames)
+        .map(|k| {
+            let far = bx(140.0 + 4.0 * f64::from(k), 100.0);
+            let boxes: Vec<[f64; 4]> = if seen(k) { vec![near, far] } else { vec![near] };
+            run(t, &boxes)
+        })
+        .collect()
+}
+
+#[test]
+fn occluded_track_is_reported_at_its_prediction_and_reattached_with_its_id() {
+    // Hidden behind the near person for frames 10-22 (13 frames), seen again from frame 23.
+    let seen = |k: u32| !(10..23).contains(&k);
+    let mut t = Tracker::new(occlusion_params(30)).unwrap();
+    t.set_image_size(640.0, 480.0).unwrap();
+    let outs = behind_scene(&mut t, 30, seen);
+    let far_id = outs[0].iter().find(|o| o.bbox[3] == 150.0).unwrap().id;
+    for (k, out) in outs.iter().enumerate() {
+        let far = out.iter().find(|o| o.id == far_id);
+        let far = far.unwrap_or_else(|| panic!("far person not reported in frame {k}"));
+        // Reported where constant velocity puts them, matched or not.
+        let cx = 0.5 * (far.bbox[0] + far.bbox[2]);
+        assert!(
+            (cx - (140.0 + 4.0 * k as f64)).abs() < 1e-6,
+            "frame {k}: cx {cx}"
+        );
+        assert_eq!(far.det_index.is_some(), seen(k as u32), "frame {k}");
+    }
+    assert_eq!(outs[29].len(), 2);
+}
+
+#[test]
+fn without_scene_reasoning_an_occluded_track_is_reported_only_output_lost_frames() {
+    let seen = |k: u32| !(10..23).contains(&k);
+    let mut t = Tracker::new(occlusion_params(0)).unwrap();
+    let outs = behind_scene(&mut t, 30, seen);
+    // Frame 10 is the one lost frame reported; 11-22 only the near person.
+    assert_eq!(outs[10].len(), 2);
+    assert!(outs[11..23].iter().all(|o| o.len() == 1));
+    // Re-attached with its id all the same (the track lived on unreported).
+    assert_eq!(outs[23].len(), 2);
+    assert_eq!(outs[23][1].id, outs[0][1].id);
+}
+
+#[test]
+fn occluded_output_is_bounded() {
+    let seen = |k: u32| k < 10;
+    let mut t = Tracker::new(occlusion_params(5)).unwrap();
+    t.set_image_size(640.0, 480.0).unwrap();
+    let outs = behind_scene(&mut t, 20, seen);
+    // Unmatched from frame 10: reported while covered for 5 frames (10-14), then not.
+    assert!(outs[10..15].iter().all(|o| o.len() == 2));
+    assert!(outs[15..20].iter().all(|o| o.len() == 1));
+}
+
+#[test]
+fn a_track_with_nothing_in_front_is_not_kept_as_occluded() {
+    // The far person vanishes in the open (no one in front): reported only `output_lost` frames.
+    let mut t = Tracker::new(occlusion_params(30)).unwrap();
+    t.set_image_size(640.0, 480.0).unwrap();
+    for k in 0..10 {
+        run(&mut t, &[bx(400.0 + 4.0 * f64::from(k), 100.0)]);
+    }
+    assert_eq!(run(&mut t, &[]).len(), 1);
+    assert!(run(&mut t, &[]).is_empty());
+    assert_eq!(t.num_tracks(), 1, "kept alive (unreported) until max_age");
+}
+
+/// A person walks right at 8 px/frame until their box touches the right edge of a 640 px wide
+/// image, then is no longer detected; returns the live tracks after each of 4 empty frames.
+fn walk_out(occluded_output: u32, image_size: bool) -> Vec<usize> {
+    let mut t = Tracker::new(occlusion_params(occluded_output)).unwrap();
+    if image_size {
+        t.set_image_size(640.0, 480.0).unwrap();
+    }
+    for k in 0..8 {
+        run(&mut t, &[bx(564.0 + 8.0 * f64::from(k), 100.0)]); // last box: x 600..640
+    }
+    (0..4)
+        .map(|_| {
+            run(&mut t, &[]);
+            t.num_tracks()
+        })
+        .collect()
+}
+
+#[test]
+fn a_track_that_leaves_the_image_is_deleted() {
+    // Predicted boxes: x 608..648 (80% inside), 616..656 (60%), 624..664 (40%: left).
+    assert_eq!(walk_out(30, true), vec![1, 1, 0, 0]);
+    // Without an image size nothing is judged to have left.
+    assert_eq!(walk_out(30, false), vec![1, 1, 1, 1]);
+    // Without scene reasoning the track lives on until max_age.
+    assert_eq!(walk_out(0, true), vec![1, 1, 1, 1]);
+}
+
+#[test]
+fn image_size_is_validated() {
+    let mut t = Tracker::new(TrackerParams::default()).unwrap();
+    assert!(t.set_image_size(0.0, 480.0).is_err());
+    assert!(t.set_image_size(640.0, f64::NAN).is_err());
+    assert!(t.set_image_size(640.0, 480.0).is_ok());
+}
+
+/// A detector whose scores start at its own floor of 0.5: warm-up frames of people far apart
+/// (scores 0.5-0.95), then a new person scoring 0.55 (just above the floor) and one scoring 0.95.
+/// Returns which of the two were reported (tracks start and are confirmed at once).
+fn births_from_a_floored_detector(relative_scores: bool) -> (bool, bool) {
+    let mut t = Tracker::new(TrackerParams {
+        n_init: 1,
+        relative_scores,
+        ..cv_params()
+    })
+    .unwrap();
+    let crowd: Vec<[f64; 4]> = (0..10).map(|i| bx(100.0 * f64::from(i), 100.0)).collect();
+    let crowd_scores: Vec<f64> = (0..10).map(|i| 0.5 + 0.05 * f64::from(i)).collect();
+    let flat = |b: &[[f64; 4]]| b.iter().flatten().copied().collect::<Vec<f64>>();
+    for _ in 0..4 {
+        t.update(&flat(&crowd), &crowd_scores, None).unwrap();
+    }
+    let mut boxes = crowd.clone();
+    boxes.push(bx(50.0, 400.0));
+    boxes.push(bx(250.0, 400.0));
+    let mut scores = crowd_scores.clone();
+    scores.extend([0.55, 0.95]);
+    let out = t.update(&flat(&boxes), &scores, None).unwrap();
+    let reported = |j: usize| out.iter().any(|o| o.det_index == Some(j));
+    (reported(10), reported(11))
+}
+
+#[test]
+fn relative_scores_read_thresholds_from_the_detectors_floor() {
+    // Relative: 0.55 sits at 0.1 of the range seen (0.5-1), under det_threshold 0.3: only the
+    // 0.95 person starts a track. As given: both do (0.55 >= 0.3).
+    assert_eq!(births_from_a_floored_detector(true), (false, true));
+    assert_eq!(births_from_a_floored_detector(false), (true, true));
+    assert!(!TrackerParams::pure().relative_scores);
+}

@@ -250,6 +250,13 @@ impl PyTracker {
         ))
     }
 
+    /// The image size in pixels, for telling a track that left the image from a hidden one.
+    fn set_image_size(&mut self, width: f64, height: f64) -> PyResult<()> {
+        self.inner
+            .set_image_size(width, height)
+            .map_err(track_error)
+    }
+
     /// Forgets all tracks; ids restart at 1.
     fn reset(slf: &Bound<'_, Self>) -> PyResult<()> {
         slf.try_borrow_mut()

@@ -1,8 +1,8 @@
 //! Time per agent-step of the motion models in a dense crowd (`cargo bench -p frvo`).
 //! Agents stand on a jittered 25 px grid (dense: about 20 x 40 px ellipses), walking in four
 //! directions, so every agent has at least `k` neighbours within the radius. Each case runs on
-//! one thread (`t1`) and on every core (`tall`: `MotionParams::threads = 0`); crowds under 300
-//! agent-neighbour pairs stay on one thread either way.
+//! one thread (`t1`) and on every core (`tall`: `MotionParams::threads = 0`); crowds under
+//! `frvo::models::orca::PARALLEL_MIN_PAIRS` agent-neighbour pairs stay on one thread either way.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use frvo::{make_model, MotionKind, MotionParams};

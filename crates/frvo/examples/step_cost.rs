@@ -1,8 +1,8 @@
 //! Fixed work for load-insensitive cost counts (`perf stat -e instructions:u,task-clock`):
 //! `cargo run -p frvo --release --example step_cost -- <frvo|rvo> <neighbours> <agents> <steps>
-//! [threads]` steps the benchmark's crowd (see `benches/crowd.rs`) on `threads` (default 1, so
-//! that instruction counts hold no helper's spinning; 0 = every core) and prints a checksum of
-//! the velocities and a hash of their bits (equal hashes: the same velocities bit for bit).
+//! [threads]` steps the benchmark's crowd (see `benches/crowd.rs`) on `threads` (default 1; 0 =
+//! every core) and prints a checksum of the velocities and a hash of their bits (equal hashes:
+//! the same velocities bit for bit).
 
 use frvo::{make_model, MotionKind, MotionParams};
 

@@ -1,9 +1,9 @@
-//! One thread against every core on the benchmark's crowd, interleaved in one process so that
-//! both see the same machine load:
-//! `cargo run -p frvo --release --example thread_cost -- <neighbours> <agents> <rounds>`
-//! prints the fastest round's time per agent-step for each (FRVO).
+//! Measures where threads start to pay: one thread against every core (forced parallel at any
+//! size) on the benchmark's crowd, interleaved in one process so that both see the same
+//! machine load. `cargo run -p frvo --release --example thread_cost -- [neighbours] [rounds]`
+//! prints, per crowd size, the median time per step of each and their ratio.
 
-use frvo::{make_model, MotionKind, MotionParams};
+use frvo::{Footprint, MotionModel, MotionParams, Orca};
 use std::time::Instant;
 
 #[path = "../benches/support/crowd.rs"]
@@ -14,35 +14,36 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let arg =
         |i: usize, default: usize| args.get(i).and_then(|s| s.parse().ok()).unwrap_or(default);
-    let (k, n, rounds) = (arg(1, 10), arg(2, 200).max(1), arg(3, 20));
-    let agents = crowd(n);
-    // About 20,000 agent-steps per round.
-    let steps = (20_000 / n).max(2);
-    let mut models: Vec<_> = [1, 0]
-        .into_iter()
-        .map(|threads| {
-            make_model(
-                MotionKind::Frvo,
-                MotionParams {
-                    threads,
-                    ..params(k)
-                },
-            )
-        })
-        .collect();
-    let mut best = [f64::INFINITY; 2];
-    for _ in 0..rounds {
-        for (model, best) in models.iter_mut().zip(&mut best) {
-            let start = Instant::now();
-            for _ in 0..steps {
-                std::hint::black_box(model.step(&agents, 1.0));
+    let (k, rounds) = (arg(1, 10), arg(2, 30).max(1));
+    println!("| agents | pairs | one thread us/step | every core us/step | every core / one |");
+    println!("|---:|---:|---:|---:|---:|");
+    for n in [20, 40, 80, 160, 300, 500, 1000, 2000, 4000] {
+        let agents = crowd(n);
+        let model = |threads| {
+            let p = MotionParams {
+                threads,
+                ..params(k)
+            };
+            Orca::new(p, Footprint::Ellipse).with_parallel_min_pairs(0)
+        };
+        let mut models = [model(1), model(0)];
+        // About 20,000 agent-steps per round and model.
+        let steps = (20_000 / n).max(2);
+        let mut times = [Vec::new(), Vec::new()];
+        for _ in 0..rounds {
+            for (model, times) in models.iter_mut().zip(&mut times) {
+                let start = Instant::now();
+                for _ in 0..steps {
+                    std::hint::black_box(model.step(&agents, 1.0));
+                }
+                times.push(start.elapsed().as_secs_f64() * 1e6 / steps as f64);
             }
-            let per_agent = start.elapsed().as_secs_f64() / (steps * n) as f64;
-            *best = best.min(per_agent * 1e6);
         }
+        let [one, all] = times.map(|mut t| {
+            t.sort_by(f64::total_cmp);
+            t[t.len() / 2]
+        });
+        let pairs = n * k.min(n - 1);
+        println!("| {n} | {pairs} | {one:.1} | {all:.1} | {:.2} |", all / one);
     }
-    println!(
-        "FRVO k={k} n={n}: one thread {:.3} us, every core {:.3} us per agent-step (fastest of {rounds} rounds)",
-        best[0], best[1]
-    );
 }

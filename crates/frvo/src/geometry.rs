@@ -1,4 +1,4 @@
-//! Convex polygons on the stack and the conservative polygon of an oriented ellipse.
+//! Convex polygons and the conservative polygon of a pedestrian's ellipse.
 
 use nalgebra::Vector2;
 
@@ -13,29 +13,25 @@ pub const MAX_VERTICES: usize = 2 * MAX_SIDES;
 pub const MIN_SIZE: f64 = 1e-3;
 
 /// 2-D cross product (z component).
-#[inline]
 pub fn cross(a: V2, b: V2) -> f64 {
     a.x * b.y - a.y * b.x
 }
 
 /// Left normal: `a` rotated by +90 degrees.
-#[inline]
 pub fn left_normal(a: V2) -> V2 {
     V2::new(-a.y, a.x)
 }
 
 /// Right normal: `a` rotated by -90 degrees (outward normal of a counter-clockwise edge).
-#[inline]
 pub fn right_normal(a: V2) -> V2 {
     V2::new(a.y, -a.x)
 }
 
-#[inline]
 pub fn is_finite(v: V2) -> bool {
     v.x.is_finite() && v.y.is_finite()
 }
 
-/// A convex polygon with counter-clockwise vertices in a fixed-size array (no allocation).
+/// A convex polygon with counter-clockwise vertices, stored inline (no allocation).
 #[derive(Clone, Copy, Debug)]
 pub struct Polygon {
     pts: [V2; MAX_VERTICES],
@@ -55,13 +51,13 @@ impl Polygon {
     /// Counter-clockwise vertices; at most [`MAX_VERTICES`] are kept.
     pub fn from_ccw(points: &[V2]) -> Self {
         let mut p = Self::default();
-        for &q in points.iter().take(MAX_VERTICES) {
+        for &q in points {
             p.push(q);
         }
         p
     }
 
-    #[inline]
+    /// Appends a vertex (ignored once [`MAX_VERTICES`] are held).
     pub fn push(&mut self, p: V2) {
         if self.len < MAX_VERTICES {
             self.pts[self.len] = p;
@@ -69,30 +65,14 @@ impl Polygon {
         }
     }
 
-    /// Replaces the vertices with those `fill` writes to the front of the storage (it returns
-    /// how many): lets a hot loop write with a local index, without a length check per vertex.
-    #[inline]
-    pub fn fill(&mut self, fill: impl FnOnce(&mut [V2; MAX_VERTICES]) -> usize) {
-        self.len = fill(&mut self.pts).min(MAX_VERTICES);
-    }
-
-    /// Empties the polygon (the storage is reused, not cleared).
-    #[inline]
-    pub fn clear(&mut self) {
-        self.len = 0;
-    }
-
-    #[inline]
     pub fn points(&self) -> &[V2] {
         &self.pts[..self.len]
     }
 
-    #[inline]
     pub fn len(&self) -> usize {
         self.len
     }
 
-    #[inline]
     pub fn is_empty(&self) -> bool {
         self.len == 0
     }
@@ -135,7 +115,8 @@ pub fn lowest_vertex(pts: &[V2]) -> usize {
     best
 }
 
-/// An ellipse with full extent `l` along its heading and `w` across it.
+/// A pedestrian's ellipse: full extent `l` along its heading (the visible face) and `w`
+/// across it (the shoulders).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Ellipse {
     /// Half extent along the heading.
@@ -178,81 +159,29 @@ impl Ellipse {
     }
 
     /// A counter-clockwise convex polygon with `sides` sides (clamped to 3..=[`MAX_SIDES`]) that
-    /// contains the ellipse: the regular polygon circumscribing the unit circle, scaled to the
-    /// axes (an affine map keeps the containment) and rotated to the heading. A vertex, not a
-    /// flat side, points along the heading: flat fronts make head-on pairs stall (their
-    /// avoidance has no sideways component).
+    /// contains the ellipse (the paper's "conservative linear approximation"): the regular
+    /// polygon circumscribing the unit circle, scaled to the axes (an affine map keeps the
+    /// containment) and rotated to the heading. A vertex, not a flat side, points along the
+    /// heading: flat fronts make head-on pairs stall (their avoidance has no sideways
+    /// component). With an even number of sides the polygon is its own reflection through the
+    /// centre, bit for bit, so that two agents see their pair's obstacle as exact mirrors.
     pub fn polygon(&self, sides: usize) -> Polygon {
-        let unit = UnitPolygon::new(sides);
-        let mut p = Polygon::default();
-        self.for_each_vertex(&unit, |q| p.push(q));
-        p
-    }
-
-    /// The vertices of [`Ellipse::polygon`] (same arithmetic, so the same bits) from a
-    /// precomputed [`UnitPolygon`]: no trigonometry per ellipse.
-    #[inline]
-    pub fn for_each_vertex(&self, unit: &UnitPolygon, mut emit: impl FnMut(V2)) {
-        let (c, s) = (self.heading.x, self.heading.y);
-        let (ar, br) = (self.a * unit.r, self.b * unit.r);
-        for &(cos, sin) in unit.angles() {
-            let x = ar * cos;
-            let y = br * sin;
-            emit(V2::new(c * x - s * y, s * x + c * y));
-        }
-    }
-}
-
-/// The regular `sides`-gon circumscribing the unit circle, vertex 0 on the x axis: the circumradius
-/// `r` and each vertex angle's (cos, sin), computed once and reused for every ellipse.
-#[derive(Clone, Copy, Debug)]
-pub struct UnitPolygon {
-    r: f64,
-    angles: [(f64, f64); MAX_SIDES],
-    len: usize,
-}
-
-impl UnitPolygon {
-    /// `sides` is clamped to 3..=[`MAX_SIDES`].
-    pub fn new(sides: usize) -> Self {
         let n = sides.clamp(3, MAX_SIDES);
         let step = std::f64::consts::TAU / n as f64;
-        let mut angles = [(0.0, 0.0); MAX_SIDES];
-        for (k, cs) in angles.iter_mut().take(n).enumerate() {
-            let t = k as f64 * step;
-            *cs = (t.cos(), t.sin());
+        let r = 1.0 / (0.5 * step).cos();
+        let (c, s) = (self.heading.x, self.heading.y);
+        let mut p = Polygon::default();
+        for k in 0..n {
+            let q = if n % 2 == 0 && k >= n / 2 {
+                -p.pts[k - n / 2]
+            } else {
+                let t = k as f64 * step;
+                let (x, y) = (self.a * r * t.cos(), self.b * r * t.sin());
+                V2::new(c * x - s * y, s * x + c * y)
+            };
+            p.push(q);
         }
-        if n % 2 == 0 {
-            // Exactly centrally symmetric (trigonometry rounds the two halves differently), so
-            // that every ellipse polygon equals its own reflection bit for bit: the crowd step
-            // then needs no separate negated polygons.
-            for k in n / 2..n {
-                let (c, s) = angles[k - n / 2];
-                angles[k] = (-c, -s);
-            }
-        }
-        Self {
-            r: 1.0 / (0.5 * step).cos(),
-            angles,
-            len: n,
-        }
-    }
-
-    #[inline]
-    pub fn sides(&self) -> usize {
-        self.len
-    }
-
-    /// Whether every polygon built from this one is its own reflection through its centre,
-    /// bit for bit (even `sides`).
-    #[inline]
-    pub fn is_symmetric(&self) -> bool {
-        self.len % 2 == 0
-    }
-
-    #[inline]
-    fn angles(&self) -> &[(f64, f64)] {
-        &self.angles[..self.len]
+        p
     }
 }
 

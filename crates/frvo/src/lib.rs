@@ -9,15 +9,12 @@
 //! social forces and circular RVO implement it too, for the method's ablation.
 
 pub mod agent;
-mod cull;
 pub mod geometry;
 pub mod lp;
 pub mod minkowski;
 pub mod model;
 pub mod models;
 pub mod neighbors;
-mod pair;
-mod team;
 pub mod velocity_obstacle;
 
 pub use agent::Agent;

@@ -1,7 +1,7 @@
-//! Incremental 2-D linear programming over half-planes and a speed disc (Seidel-style, the scheme
-//! ORCA uses): find the velocity closest to the preferred one inside every half-plane and the
-//! disc `|v| <= max_speed`; when none exists, the velocity in the disc whose largest violation of
-//! a half-plane is smallest.
+//! Incremental 2-D linear programming over half-planes and a speed disc (Seidel-style, the
+//! scheme of RVO2's `linearProgram1/2/3`): find the velocity closest to the preferred one
+//! inside every half-plane and the disc `|v| <= max_speed`; when none exists, the velocity in
+//! the disc whose largest violation of a half-plane is smallest.
 //!
 //! Lines are added one at a time. The current optimum only moves when the new line cuts it off,
 //! and then the new optimum lies on that line, which is a 1-D problem over the earlier lines.
@@ -20,7 +20,6 @@ pub struct Line {
 
 impl Line {
     /// Signed distance of `v` on the wrong (right) side of the line: <= 0 when feasible.
-    #[inline]
     pub fn violation(&self, v: V2) -> f64 {
         cross(self.dir, self.point - v)
     }
@@ -40,57 +39,53 @@ pub struct Solution {
     pub violation: f64,
 }
 
+/// What the 1-D and 2-D programs optimise.
+#[derive(Clone, Copy)]
+enum Goal {
+    /// Get as close as possible to this point.
+    Nearest(V2),
+    /// Go as far as possible along this unit direction.
+    Farthest(V2),
+}
+
 /// Velocity closest to `pref` in all half-planes and `|v| <= max_speed` (or the min-max
 /// violation point when infeasible). `scratch` is reused between calls to avoid allocation.
 pub fn solve(lines: &[Line], max_speed: f64, pref: V2, scratch: &mut Vec<Line>) -> Solution {
     let mut v = V2::zeros();
-    let failed = lp2::<false>(lines, max_speed, pref, &mut v);
-    if failed < lines.len() {
-        let violation = lp3(lines, failed, max_speed, &mut v, scratch);
-        Solution {
-            velocity: v,
-            feasible: false,
-            violation,
-        }
-    } else {
-        Solution {
+    let failed = lp2(lines, max_speed, Goal::Nearest(pref), &mut v);
+    if failed == lines.len() {
+        return Solution {
             velocity: v,
             feasible: true,
             violation: 0.0,
-        }
+        };
+    }
+    let violation = lp3(lines, failed, max_speed, &mut v, scratch);
+    Solution {
+        velocity: v,
+        feasible: false,
+        violation,
     }
 }
 
-/// Optimum on line `i` subject to lines `0..i` and the disc; false if that segment is empty.
-/// With `DIRECTION`, `opt` is a unit direction to go as far as possible along; otherwise the
-/// point to get closest to. (A const parameter, so that each caller's copy has no tests of
-/// the mode; the direction copy then picks `hi` or `lo` without a branch.)
-fn lp1<const DIRECTION: bool>(
-    lines: &[Line],
-    i: usize,
-    radius: f64,
-    opt: V2,
-    out: &mut V2,
-) -> bool {
+/// Optimum on line `i` subject to lines `0..i` and the disc of `radius`; false if that segment
+/// is empty.
+fn lp1(lines: &[Line], i: usize, radius: f64, goal: Goal, out: &mut V2) -> bool {
     // Parameterise from the line's point nearest the origin: a far-away point (bisectors of
     // nearly parallel lines) would lose the disc bounds to cancellation.
     let dir = lines[i].dir;
     let offset = cross(dir, lines[i].point);
-    let line = Line {
-        point: offset * left_normal(dir),
-        dir,
-    };
-    // Parameter range t of line.point + t * line.dir inside the disc.
+    let point = offset * left_normal(dir);
+    // Parameter range [lo, hi] of point + t * dir inside the disc.
     let disc = radius * radius - offset * offset;
     if disc.is_nan() || disc < 0.0 {
         return false;
     }
-    let root = disc.sqrt();
-    let (mut lo, mut hi) = (-root, root);
+    let (mut lo, mut hi) = (-disc.sqrt(), disc.sqrt());
     for other in &lines[..i] {
         // other.violation(point + t dir) <= 0  <=>  t * denom <= numer.
-        let denom = cross(line.dir, other.dir);
-        let numer = cross(other.dir, line.point - other.point);
+        let denom = cross(dir, other.dir);
+        let numer = cross(other.dir, point - other.point);
         if denom.abs() <= PARALLEL_EPS {
             if numer < 0.0 {
                 return false; // parallel, and this line lies wholly outside the other
@@ -98,54 +93,39 @@ fn lp1<const DIRECTION: bool>(
             continue;
         }
         let t = numer / denom;
-        // Selects rather than f64::min/max (which also test lo and hi for NaN): the same
-        // values, as lo and hi start from a non-NaN root and only ever take a t that compared
-        // (so non-NaN), a NaN t leaves the bound as min/max do, and for equal t and bound
-        // (signed zeros) both keep the bound (x86 minsd/maxsd return their second operand).
         if denom > 0.0 {
-            hi = if t < hi { t } else { hi };
+            hi = hi.min(t);
         } else {
-            lo = if t > lo { t } else { lo };
+            lo = lo.max(t);
         }
         if lo > hi {
             return false;
         }
     }
-    let t = if DIRECTION {
-        if opt.dot(&line.dir) > 0.0 {
-            hi
-        } else {
-            lo
-        }
-    } else {
-        // f64::clamp without its lo <= hi assertion (the loop returned when lo > hi, and
-        // neither is NaN): a NaN projection stays NaN as with clamp.
-        let t = line.dir.dot(&(opt - line.point));
-        let t = if t < lo { lo } else { t };
-        if t > hi {
-            hi
-        } else {
-            t
-        }
+    let t = match goal {
+        Goal::Farthest(d) if d.dot(&dir) > 0.0 => hi,
+        Goal::Farthest(_) => lo,
+        // lo <= hi and neither is NaN here, so `clamp` cannot panic.
+        Goal::Nearest(target) => dir.dot(&(target - point)).clamp(lo, hi),
     };
-    *out = line.point + t * line.dir;
+    *out = point + t * dir;
     true
 }
 
 /// Adds the lines one by one; returns `lines.len()` on success, or the index of the first line
 /// that made the problem infeasible (`out` then holds the optimum of the lines before it).
-fn lp2<const DIRECTION: bool>(lines: &[Line], radius: f64, opt: V2, out: &mut V2) -> usize {
-    *out = if DIRECTION {
-        opt * radius
-    } else if opt.norm_squared() > radius * radius {
-        opt.normalize() * radius
-    } else {
-        opt
+fn lp2(lines: &[Line], radius: f64, goal: Goal, out: &mut V2) -> usize {
+    *out = match goal {
+        Goal::Farthest(d) => d * radius,
+        Goal::Nearest(target) if target.norm_squared() > radius * radius => {
+            target.normalize() * radius
+        }
+        Goal::Nearest(target) => target,
     };
     for i in 0..lines.len() {
         if lines[i].violation(*out) > 0.0 {
             let before = *out;
-            if !lp1::<DIRECTION>(lines, i, radius, opt, out) {
+            if !lp1(lines, i, radius, goal, out) {
                 *out = before;
                 return i;
             }
@@ -187,7 +167,8 @@ fn lp3(lines: &[Line], begin: usize, radius: f64, out: &mut V2, projected: &mut 
             }
         }
         let before = *out;
-        if lp2::<true>(projected, radius, left_normal(line.dir), out) < projected.len() {
+        let goal = Goal::Farthest(left_normal(line.dir));
+        if lp2(projected, radius, goal, out) < projected.len() {
             // Only reachable through rounding; keep the previous point.
             *out = before;
         }

@@ -8,6 +8,7 @@
 
 use crate::geometry::{cross, left_normal, right_normal, Polygon, MAX_VERTICES, V2};
 use crate::lp::Line;
+use crate::minkowski::wrap;
 
 /// One boundary piece of a convex region: `start + t * edge`, `t` in `[0, 1]` (segment) or
 /// `[0, inf)` (ray), with its unit outward normal.
@@ -27,47 +28,35 @@ pub struct Avoidance {
     pub normal: V2,
 }
 
-// The facing-edge bit mask holds one bit per vertex.
-const _: () = assert!(MAX_VERTICES <= 64);
-
 /// Avoidance for relative velocity `w`, relative position `p`, Minkowski sum `sum = B ⊕ (-A)`.
 /// Apart (origin outside `P`): the truncated cone for horizon `tau`. Overlapping: as RVO2 does,
-/// the obstacle is `P / dt`, so that the overlap is resolved within one step. This is the
-/// plain form, built from the whole sum; the crowd step computes the same in one pass
-/// (`pair::pair_avoidance`) and is tested against it.
+/// the obstacle is `P / dt`, so that the overlap is resolved within one step.
 pub fn avoidance(p: V2, sum: &Polygon, w: V2, tau: f64, dt: f64) -> Avoidance {
     let pts = sum.points();
-    let n = pts.len().min(MAX_VERTICES);
-    let mut feats = Vec::with_capacity(n + 2);
-    let next = |i: usize| if i + 1 == n { 0 } else { i + 1 };
-    // Edge i (from vertex i to i+1) faces the origin when the origin is on its outer side;
-    // bit i of `facing`. The facing edges of a convex polygon are one contiguous run (none
-    // when the origin is inside); `first` is where it starts.
-    let faces = |i: usize| cross(pts[next(i)] - pts[i], -(p + pts[i])) < 0.0;
-    let mut facing = 0u64;
+    let n = pts.len();
+    let next = |i: usize| wrap(i + 1, n);
+    // Edge i (from vertex i to i + 1) faces the origin when the origin is on its outer (right)
+    // side: cross(edge, 0 - (p + v_i)) < 0, i.e. cross(edge, p + v_i) > 0. The facing edges
+    // of a convex polygon are one contiguous run (none when the origin is inside); `first` is
+    // where it starts.
+    let mut faces = [false; MAX_VERTICES];
     for i in 0..n {
-        facing |= u64::from(faces(i)) << i;
+        faces[i] = cross(pts[next(i)] - pts[i], p + pts[i]) > 0.0;
     }
-    let is_facing = |i: usize| facing >> i & 1 == 1;
-    let mut first = None;
-    if n >= 3 {
-        // Facing edges whose predecessor (cyclically) does not face.
-        let prev = facing << 1 | facing >> (n - 1);
-        let starts = facing & !prev & (u64::MAX >> (64 - n));
-        if starts != 0 {
-            first = Some(starts.trailing_zeros() as usize);
-        }
-    }
+    let first = if n >= 3 {
+        (0..n).find(|&i| faces[i] && !faces[wrap(i + n - 1, n)])
+    } else {
+        None
+    };
+    let mut feats = Vec::with_capacity(n + 2);
     match first {
         Some(first) => {
+            // The cap: the facing edges of P / tau ...
             let inv_tau = 1.0 / tau;
-            let start = p + pts[first];
             let mut k = first;
-            let mut steps = 0;
-            while is_facing(k) && steps < n {
+            while faces[k] && feats.len() < n {
                 let a = p + pts[k];
-                let b = p + pts[next(k)];
-                let edge = b - a;
+                let edge = pts[next(k)] - pts[k];
                 feats.push(Feature {
                     start: a * inv_tau,
                     edge: edge * inv_tau,
@@ -75,9 +64,9 @@ pub fn avoidance(p: V2, sum: &Polygon, w: V2, tau: f64, dt: f64) -> Avoidance {
                     normal: unit(right_normal(edge)),
                 });
                 k = next(k);
-                steps += 1;
             }
-            let end = p + pts[k];
+            // ... and the two legs: rays from the cap's ends, away from the origin.
+            let (start, end) = (p + pts[first], p + pts[k]);
             feats.push(Feature {
                 start: start * inv_tau,
                 edge: start,
@@ -94,10 +83,9 @@ pub fn avoidance(p: V2, sum: &Polygon, w: V2, tau: f64, dt: f64) -> Avoidance {
         None => {
             let inv_dt = 1.0 / dt;
             for i in 0..n {
-                let a = p + pts[i];
                 let edge = pts[next(i)] - pts[i];
                 feats.push(Feature {
-                    start: a * inv_dt,
+                    start: (p + pts[i]) * inv_dt,
                     edge: edge * inv_dt,
                     ray: false,
                     normal: unit(right_normal(edge)),
@@ -108,7 +96,7 @@ pub fn avoidance(p: V2, sum: &Polygon, w: V2, tau: f64, dt: f64) -> Avoidance {
     nearest_boundary(&feats, w)
 }
 
-pub(crate) fn unit(v: V2) -> V2 {
+fn unit(v: V2) -> V2 {
     let n = v.norm();
     if n > 0.0 && n.is_finite() {
         v / n

@@ -1,7 +1,6 @@
-//! The optimised crowd step (prepared polygons, reused buffers, grid search) against a plain
-//! reference built from the public pieces, each tested on its own: brute-force neighbours,
-//! `Ellipse::polygon`, `minkowski_sum`, `avoidance`, `reciprocal_line` and `lp::solve`.
-//! Optimisations must not change the model's output (the tracker is tuned on it): the fast
+//! The crowd step (grid neighbours, reused buffers, threads) against a plain O(N^2) reference
+//! built from the public pieces, each tested on its own: brute-force neighbours,
+//! `Ellipse::polygon`, `minkowski_sum`, `avoidance`, `reciprocal_line` and `lp::solve`. The
 //! step's velocity must solve the reference's LP as well as the reference's own solution does.
 //! (The velocities themselves are compared too, but a min-max solution need not be unique:
 //! with two antiparallel half-planes a whole segment is optimal, and rounding differences in

@@ -1,6 +1,7 @@
 //! A crowd step spread over threads gives the same velocities, bit for bit, as on one thread.
 
 use frvo::geometry::V2;
+use frvo::models::orca::PARALLEL_MIN_PAIRS;
 use frvo::{Agent, Footprint, MotionModel, MotionParams, Orca};
 
 /// A small deterministic generator (no RNG dependency): uniform in [0, 1).
@@ -100,12 +101,11 @@ fn cores() -> usize {
     std::thread::available_parallelism().map_or(1, |n| n.get())
 }
 
-/// Models stepping on several threads at once: clones of one model share its helper threads,
-/// every-core models share the process's, and a caller that finds them busy runs alone. Each
-/// must still give the one-thread velocities.
+/// Models stepping on several threads at once: clones of one model share its pool, every-core
+/// models share the process's. Each must still give the one-thread velocities.
 #[test]
 fn concurrent_callers_give_the_same_velocities() {
-    let crowds: Vec<Vec<Agent>> = [60, 200, 400, 900]
+    let crowds: Vec<Vec<Agent>> = [60, 400, 1100, 2000]
         .into_iter()
         .map(|n| crowd(n, 100 + n as u64))
         .collect();
@@ -121,7 +121,7 @@ fn concurrent_callers_give_the_same_velocities() {
         .map(|c| step(Footprint::Ellipse, params(1), c).0)
         .collect();
     let mut own = Orca::new(params(2), Footprint::Ellipse);
-    own.step(&crowds[3], 1.0); // starts its helper threads, which its clones share
+    own.step(&crowds[3], 1.0); // makes its pool, which its clones share
     std::thread::scope(|scope| {
         for caller in 0..4 {
             let (crowds, expected) = (&crowds, &expected);
@@ -143,4 +143,44 @@ fn concurrent_callers_give_the_same_velocities() {
             });
         }
     });
+}
+
+/// A model reused across crowds of changing size and shape gives what a fresh model gives, bit
+/// for bit, and spreads a step over threads exactly when the crowd has enough pairs.
+#[test]
+fn reused_model_gives_what_a_fresh_one_gives() {
+    for footprint in [Footprint::Ellipse, Footprint::Circle] {
+        let params = MotionParams {
+            neighbor_radius: 120.0,
+            max_neighbors: 10,
+            max_speed: 4.0,
+            threads: 2,
+            ..MotionParams::default()
+        };
+        let mut reused = Orca::new(params, footprint);
+        let sizes = [1.0, 2.0, 0.5, 1.5, 1.0, 1.0, 0.7, 2.0];
+        for (k, (n, size)) in [300, 20, 1200, 5, 0, 1, 1100, 40]
+            .into_iter()
+            .zip(sizes)
+            .enumerate()
+        {
+            // Sizes change too: stale shapes would give other velocities.
+            let mut agents = crowd(n, k as u64);
+            for a in &mut agents {
+                (a.l, a.w) = (size * a.l, size * a.w);
+            }
+            let v = reused.step(&agents, 1.0);
+            let (w, _, _) = step(footprint, params, &agents);
+            let bits = |v: &[V2]| -> Vec<[u64; 2]> {
+                v.iter().map(|x| [x.x.to_bits(), x.y.to_bits()]).collect()
+            };
+            assert_eq!(bits(&v), bits(&w), "{footprint:?}, crowd {k} of {n}");
+            let pairs = n * params.max_neighbors.min(n.saturating_sub(1));
+            assert_eq!(
+                reused.last_parallel(),
+                pairs >= PARALLEL_MIN_PAIRS,
+                "{n} agents"
+            );
+        }
+    }
 }

@@ -1,0 +1,145 @@
+//! Scene reasoning for a track the detector did not find this frame: is the person hidden behind
+//! people nearer the camera (occluded: keep predicting and reporting them), or gone (left the
+//! image, or nothing stands in front of where they should be)?
+//!
+//! Nearer the camera means a lower foot point (the box's bottom edge further down the image): in a
+//! front or elevated view the ground rises towards the horizon, so of two people on the ground the
+//! one whose feet are lower stands nearer.
+
+use crate::cost::{area, BBox};
+
+/// What the scene says about a track that was not matched this frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Unmatched {
+    /// Its predicted box is covered by boxes nearer the camera: it is probably still there.
+    Occluded,
+    /// Its predicted box lies mostly outside the image: it left.
+    LeftImage,
+    /// Neither: a miss of the detector, or the person is gone.
+    Uncovered,
+}
+
+/// Sample points per side of the grid that measures coverage (`GRID * GRID` points).
+const GRID: usize = 8;
+
+/// Fraction of `target` covered by the union of `front` (boxes nearer the camera), estimated on a
+/// regular grid of sample points (the centres of `GRID x GRID` equal cells).
+pub fn covered_fraction(target: &BBox, front: &[BBox]) -> f64 {
+    if front.is_empty() || area(target) <= 0.0 {
+        return 0.0;
+    }
+    let (w, h) = (target[2] - target[0], target[3] - target[1]);
+    let mut hits = 0usize;
+    for iy in 0..GRID {
+        let y = target[1] + h * (iy as f64 + 0.5) / GRID as f64;
+        for ix in 0..GRID {
+            let x = target[0] + w * (ix as f64 + 0.5) / GRID as f64;
+            if front
+                .iter()
+                .any(|b| x >= b[0] && x <= b[2] && y >= b[1] && y <= b[3])
+            {
+                hits += 1;
+            }
+        }
+    }
+    hits as f64 / (GRID * GRID) as f64
+}
+
+/// Whether `other` stands nearer the camera than `target`: its foot point is lower in the image.
+#[inline]
+pub fn nearer(other: &BBox, target: &BBox) -> bool {
+    other[3] > target[3]
+}
+
+/// Fraction of `b` inside the image `[0, w] x [0, h]`.
+pub fn inside_fraction(b: &BBox, image: [f64; 2]) -> f64 {
+    let iw = (b[2].min(image[0]) - b[0].max(0.0)).max(0.0);
+    let ih = (b[3].min(image[1]) - b[1].max(0.0)).max(0.0);
+    let a = area(b);
+    if a > 0.0 {
+        iw * ih / a
+    } else {
+        0.0
+    }
+}
+
+/// Classifies an unmatched track from its predicted box, the boxes seen this frame (`scene`:
+/// detections, the track's own excluded by the caller) and the image size when known.
+/// `min_coverage` is the covered fraction from which the track counts as occluded.
+pub fn classify(
+    predicted: &BBox,
+    scene: &[BBox],
+    image: Option<[f64; 2]>,
+    min_coverage: f64,
+) -> Unmatched {
+    if let Some(size) = image {
+        if inside_fraction(predicted, size) < 0.5 {
+            return Unmatched::LeftImage;
+        }
+    }
+    let front: Vec<BBox> = scene
+        .iter()
+        .filter(|b| nearer(b, predicted) && overlaps(b, predicted))
+        .copied()
+        .collect();
+    if covered_fraction(predicted, &front) >= min_coverage {
+        Unmatched::Occluded
+    } else {
+        Unmatched::Uncovered
+    }
+}
+
+#[inline]
+fn overlaps(a: &BBox, b: &BBox) -> bool {
+    a[0] < b[2] && b[0] < a[2] && a[1] < b[3] && b[1] < a[3]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn coverage_matches_the_exact_area_on_grid_aligned_boxes() {
+        let target = [0.0, 0.0, 8.0, 8.0];
+        assert_eq!(covered_fraction(&target, &[]), 0.0);
+        assert_eq!(covered_fraction(&target, &[[0.0, 0.0, 4.0, 8.0]]), 0.5);
+        // Two overlapping boxes: the union counts once (6 of 8 columns).
+        let two = [[0.0, 0.0, 4.0, 8.0], [2.0, 0.0, 6.0, 8.0]];
+        assert_eq!(covered_fraction(&target, &two), 0.75);
+        assert_eq!(covered_fraction(&target, &[[-1.0, -1.0, 9.0, 9.0]]), 1.0);
+    }
+
+    #[test]
+    fn a_person_behind_a_nearer_one_is_occluded_and_one_in_front_is_not() {
+        // Far person: feet at y = 100; near person: feet at y = 140, a bigger box over it.
+        let far = [50.0, 20.0, 80.0, 100.0];
+        let near = [40.0, 10.0, 95.0, 140.0];
+        assert_eq!(classify(&far, &[near], None, 0.5), Unmatched::Occluded);
+        // The near one, unmatched, with the far one in the scene: nothing in front of it.
+        assert_eq!(classify(&near, &[far], None, 0.5), Unmatched::Uncovered);
+        // Nobody around.
+        assert_eq!(classify(&far, &[], None, 0.5), Unmatched::Uncovered);
+    }
+
+    #[test]
+    fn partly_covered_is_occluded_only_from_the_threshold() {
+        let far = [0.0, 0.0, 40.0, 80.0];
+        let near = [20.0, 0.0, 80.0, 120.0]; // covers the right half
+        assert_eq!(classify(&far, &[near], None, 0.5), Unmatched::Occluded);
+        assert_eq!(classify(&far, &[near], None, 0.6), Unmatched::Uncovered);
+    }
+
+    #[test]
+    fn a_box_mostly_outside_the_image_has_left() {
+        let image = Some([640.0, 480.0]);
+        let at_edge = [620.0, 100.0, 660.0, 200.0]; // half inside: still there
+        let out = [630.0, 100.0, 670.0, 200.0]; // a quarter inside
+        let near = [600.0, 90.0, 700.0, 260.0];
+        assert_eq!(classify(&at_edge, &[near], image, 0.5), Unmatched::Occluded);
+        assert_eq!(classify(&out, &[near], image, 0.5), Unmatched::LeftImage);
+        assert_eq!(
+            inside_fraction(&[-10.0, 0.0, 10.0, 10.0], [640.0, 480.0]),
+            0.5
+        );
+    }
+}
