@@ -1,18 +1,22 @@
-"""Issue 7's speed target: `densepeds run` against the reference pipeline, whole processes.
+"""`densepeds run` against the reference pipeline, whole processes, interleaved in one run.
 
-    OPENBLAS_NUM_THREADS=1 python benchmarks/pipeline_speed.py [--seq MOT20-01-dev] \
-        [--frames 1:60] [--repeats 3] [--threads 2] [--profile]
+    OPENBLAS_NUM_THREADS=1 python benchmarks/pipeline_speed.py \
+        [--seq MOT20-01-dev,PETS09-S2L1-dev] [--frames 1:60,1:100] [--repeats 2] [--threads 2] \
+        [--profile] [--reuse] [--memory] [--write benchmarks/results/speed.md]
 
-Each repeat runs both as separate processes, model loading included, alternating which goes
-first: ours (`python -m densepeds run SEQ --frames A:B`, the package defaults) and
-`benchmarks/reference_pipeline.py` (the straightforward pipeline). onnxruntime gets
+For each sequence, each repeat runs both as separate processes (niced, ``--nice``), model
+loading included, alternating which goes first: ours (`python -m densepeds run SEQ --detector
+yoloseg --frames A:B`, the package defaults) and `benchmarks/reference_pipeline.py` (the
+straightforward pipeline, on the tiles ours picks for the frame size). onnxruntime gets
 ``--threads`` intra-op threads in both (by CPU affinity for ours: the command is started under
 ``taskset`` with that many CPUs when the machine has more; else it is the machine's count).
-Prints each run's wall and CPU seconds and per-stage ms/frame, then the medians and the ratio
-reference / ours. ``--profile`` adds an in-process pass of our pipeline that splits detection
-into preprocessing, inference, box decoding and masks. ``--reuse`` adds a third process:
-`densepeds run` with re-ID reuse switched on (``ReID(reuse=True)``, which the pipeline does not
-do by default; see densepeds.reid.ReusePolicy). Figures only: nothing is asserted.
+Prints each run's wall and CPU seconds, per-stage ms/frame and the load average, then the
+medians, re-ID's share of our frame and the ratio reference / ours. ``--profile`` adds an
+in-process pass of our pipeline that splits detection into preprocessing, inference, box
+decoding and masks. ``--reuse`` adds a third process: `densepeds run` with re-ID reuse switched
+on (``ReID(reuse=True)``, which the pipeline does not do by default; see
+densepeds.reid.ReusePolicy). ``--memory`` appends `benchmarks/memory.py`'s table; ``--write``
+writes the whole report as Markdown. Figures only: nothing is asserted.
 """
 
 from __future__ import annotations
@@ -36,6 +40,7 @@ SHARED = Path(os.environ.get("DENSEPEDS_SHARED", REPO.parent / "shared"))
 os.environ.setdefault("DENSEPEDS_MODEL_DIR", str(SHARED / "models"))
 STAGE_RE = re.compile(r"([a-z]+) ([0-9.]+)")
 REUSE_CHILD = "--child-run-with-reuse"
+DETECTOR_INPUT = 320  # the shared segmenter's input size, which sets the automatic tiles
 
 
 def _run_with_reuse(argv: list[str]) -> int:
@@ -121,72 +126,70 @@ def profile(seq_dir: Path, frames: str, threads: int) -> dict[str, float]:
     return out
 
 
-def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--seq", default="MOT20-01-dev")
-    ap.add_argument("--frames", default="1:60")
-    ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--threads", type=int, default=2)
-    ap.add_argument("--profile", action="store_true")
-    ap.add_argument("--reuse", action="store_true", help="also time ours with re-ID reuse on")
-    args = ap.parse_args()
-    seq_dir = SHARED / "data" / args.seq
+def _tiles(seq_dir: Path) -> str:
+    """The tiles our detector picks for the sequence's frame size (the reference gets the same)."""
+    from densepeds.detect.tiling import auto_grid
+    from densepeds.motio import read_seqinfo
+
+    info = read_seqinfo(seq_dir)
+    cols, rows = auto_grid(info.width, info.height, DETECTOR_INPUT)
+    return f"{cols}x{rows}"
+
+
+def compare(
+    seq: str, frames: str, args: argparse.Namespace, names: list[str], tmp: str
+) -> list[str]:
+    """Interleaved runs of one sequence; returns the report's lines (also printed)."""
+    seq_dir = SHARED / "data" / seq
     if not seq_dir.is_dir():
         raise SystemExit(f"{seq_dir}: missing (set DENSEPEDS_SHARED to the shared data folder)")
     pin = _cpu_prefix(args.threads)
     features = _default_features()
-    names = ["reference", "ours", *(["ours+reuse"] if args.reuse else [])]
-    runs: dict[str, list[Run]] = {name: [] for name in names}
-    with tempfile.TemporaryDirectory(prefix="densepeds-speed-") as tmp:
-        cmds = {
-            "ours": [
-                *pin,
-                sys.executable,
-                "-m",
-                "densepeds",
-                "run",
-                str(seq_dir),
-                "--frames",
-                args.frames,
-                "--out",
-                f"{tmp}/ours.txt",
-                "-q",
-            ],
-            "reference": [
-                *pin,
-                sys.executable,
-                str(REPO / "benchmarks" / "reference_pipeline.py"),
-                str(seq_dir),
-                "--frames",
-                args.frames,
-                "--out",
-                f"{tmp}/reference.txt",
-                "--threads",
-                str(args.threads),
-                "--features",
-                features,
-            ],
-        }
-        cmds["ours+reuse"] = [
+    tiles = _tiles(seq_dir)
+    nice = ["nice", "-n", str(args.nice)] if args.nice else []
+    ours = [*nice, *pin, sys.executable, "-m", "densepeds", "run", str(seq_dir)]
+    ours += ["--detector", "yoloseg", "--frames", frames, "--out", f"{tmp}/ours.txt", "-q"]
+    cmds = {
+        "ours": ours,
+        "reference": [
+            *nice,
+            *pin,
+            sys.executable,
+            str(REPO / "benchmarks" / "reference_pipeline.py"),
+            str(seq_dir),
+            *("--frames", frames, "--out", f"{tmp}/reference.txt"),
+            *("--threads", str(args.threads), "--features", features, "--tiles", tiles),
+        ],
+        "ours+reuse": [
+            *nice,
             *pin,
             sys.executable,
             __file__,
             REUSE_CHILD,
-            *cmds["ours"][cmds["ours"].index("run") + 1 :],
-        ]
-        cmds["ours+reuse"][cmds["ours+reuse"].index("--out") + 1] = f"{tmp}/reuse.txt"
-        markers = {"ours": "fps (", "ours+reuse": "fps (", "reference": "reference:"}
-        for rep in range(args.repeats):
-            order = names if rep % 2 == 0 else names[::-1]
-            for name in order:
-                r = run_once(cmds[name], markers[name])
-                runs[name].append(r)
-                stages = ", ".join(f"{k} {v:.1f}" for k, v in r.stages.items())
-                print(
-                    f"repeat {rep + 1} {name:9s}: wall {r.wall:.1f} s, cpu {r.cpu:.1f} s "
-                    f"({stages} ms/frame)",
-                    flush=True,
-                )
+            str(seq_dir),
+            *("--detector", "yoloseg", "--frames", frames, "--out", f"{tmp}/reuse.txt", "-q"),
+        ],
+    }
+    markers = {"ours": "fps (", "ours+reuse": "fps (", "reference": "reference:"}
+    runs: dict[str, list[Run]] = {name: [] for name in names}
+    lines = [f"### {seq}, frames {frames} ({tiles} tiles in both)", "", "```"]
+
+    def say(line: str) -> None:
+        print(line, flush=True)
+        lines.append(line)
+
+    say(f"load average before: {_load()}")
+    for rep in range(args.repeats):
+        order = names if rep % 2 == 0 else names[::-1]
+        for name in order:
+            r = run_once(cmds[name], markers[name])
+            runs[name].append(r)
+            stages = ", ".join(f"{k} {v:.1f}" for k, v in r.stages.items())
+            say(
+                f"repeat {rep + 1} {name:9s}: wall {r.wall:.1f} s, cpu {r.cpu:.1f} s "
+                f"({stages} ms/frame); load {_load()}"
+            )
+    say("```")
     med = {
         name: {
             "wall": statistics.median(r.wall for r in rs),
@@ -194,29 +197,101 @@ def main() -> int:
         }
         for name, rs in runs.items()
     }
-    print()
-    print(f"| pipeline | wall s (median of {args.repeats}) | CPU s | ms/frame by stage (median) |")
-    print("|---|---:|---:|---|")
+    say("")
+    say(f"| pipeline | wall s (median of {args.repeats}) | CPU s | ms/frame by stage (median) |")
+    say("|---|---:|---:|---|")
     for name, rs in runs.items():
         stage_med = {k: statistics.median(r.stages[k] for r in rs) for k in rs[0].stages}
         cells = ", ".join(f"{k} {v:.1f}" for k, v in stage_med.items())
-        print(f"| {name} | {med[name]['wall']:.1f} | {med[name]['cpu']:.1f} | {cells} |")
-    print()
+        share = stage_med.get("reid", 0.0) / max(sum(stage_med.values()), 1e-9)
+        cells += f" (re-ID {100 * share:.0f}% of the frame)"
+        say(f"| {name} | {med[name]['wall']:.1f} | {med[name]['cpu']:.1f} | {cells} |")
+    say("")
     for name in names[1:]:
         ratio = med["reference"]["wall"] / med[name]["wall"]
         cpu_ratio = med["reference"]["cpu"] / med[name]["cpu"]
-        print(f"speed-up, reference / {name}: {ratio:.2f}x wall, {cpu_ratio:.2f}x CPU time")
-    print(
-        f"{args.seq} frames {args.frames}; features {features}; "
-        f"onnxruntime threads {args.threads}; "
+        say(f"Speed-up, reference / {name}: **{ratio:.2f}x wall**, {cpu_ratio:.2f}x CPU time.")
+    say("")
+    say(
+        f"Features {features}; onnxruntime threads {args.threads}; "
         f"{'pinned with ' + ' '.join(pin) if pin else 'not pinned'}; "
-        f"{len(os.sched_getaffinity(0))} CPUs; load average {os.getloadavg()[0]:.1f} at the end; "
-        f"{platform.processor() or platform.machine()}; Python {platform.python_version()}"
+        f"{len(os.sched_getaffinity(0))} CPUs; load average after {_load()}."
     )
+    say("")
     if args.profile:
-        print("\nours in-process, ms/frame:")
-        for k, v in profile(seq_dir, args.frames, args.threads).items():
-            print(f"  {k}: {v:.1f}")
+        say("Ours in-process, ms/frame:")
+        say("")
+        for k, v in profile(seq_dir, frames, args.threads).items():
+            say(f"- {k}: {v:.1f}")
+        say("")
+    return lines
+
+
+def _cpu_name() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def _load() -> str:
+    return "/".join(f"{v:.1f}" for v in os.getloadavg())
+
+
+def memory_lines() -> list[str]:
+    """benchmarks/memory.py's table (the package's defaults over the MOT20-01 video)."""
+    cmd = [sys.executable, str(REPO / "benchmarks" / "memory.py")]
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="1")
+    proc = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=REPO)
+    if proc.returncode != 0:
+        raise SystemExit(f"memory.py failed ({proc.returncode}):\n{proc.stderr[-3000:]}")
+    print(proc.stdout, flush=True)
+    return ["## Memory (`benchmarks/memory.py`)", "", proc.stdout.strip(), ""]
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--seq", default="MOT20-01-dev,PETS09-S2L1-dev", help="comma-separated")
+    ap.add_argument("--frames", default="1:60,1:100", help="one range per sequence")
+    ap.add_argument("--repeats", type=int, default=2)
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--nice", type=int, default=5, help="niceness of the timed processes")
+    ap.add_argument("--profile", action="store_true")
+    ap.add_argument("--reuse", action="store_true", help="also time ours with re-ID reuse on")
+    ap.add_argument("--memory", action="store_true", help="also run benchmarks/memory.py")
+    ap.add_argument("--write", type=Path, help="write the report to this file")
+    args = ap.parse_args()
+    seqs, ranges = args.seq.split(","), args.frames.split(",")
+    if len(ranges) != len(seqs):
+        raise SystemExit(f"give one frame range per sequence: {len(seqs)} vs {len(ranges)}")
+    names = ["reference", "ours", *(["ours+reuse"] if args.reuse else [])]
+    command = "OPENBLAS_NUM_THREADS=1 python benchmarks/pipeline_speed.py " + " ".join(sys.argv[1:])
+    lines = [
+        "# Speed: `densepeds run` against the reference pipeline",
+        "",
+        "Written by this command (do not edit; rerun it):",
+        "",
+        f"    {command}",
+        "",
+        f"Machine: {_cpu_name()}, "
+        f"{len(os.sched_getaffinity(0))} CPUs usable, shared with other jobs; Python "
+        f"{platform.python_version()}. Each repeat runs every pipeline as a whole process "
+        "(model loading included), the order alternating; the load average is printed "
+        "around each run. `reference` is `benchmarks/reference_pipeline.py` (the shipped int8 "
+        "segmenter, a batch-1 call per tile, OSNet on every crop); `ours` is `densepeds run` "
+        "with the package's defaults.",
+        "",
+    ]
+    with tempfile.TemporaryDirectory(prefix="densepeds-speed-") as tmp:
+        for seq, frames in zip(seqs, ranges, strict=True):
+            lines += compare(seq, frames, args, names, tmp)
+    if args.memory:
+        lines += memory_lines()
+    if args.write:
+        args.write.write_text("\n".join(lines).rstrip() + "\n", encoding="utf-8")
     return 0
 
 

@@ -1,13 +1,14 @@
 """The straightforward pipeline that issue 7's speed target is measured against.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/reference_pipeline.py SEQ_OR_VIDEO --frames 1:60 \
-        --out tracks.txt [--features segmented] [--threads 2]
+        --out tracks.txt [--features segmented] [--threads 2] [--tiles 3x2]
 
 Same models and settings as ``densepeds run``, done the plain way: the shipped int8 segmenter on
-the 3x2 tiles, each tile its own batch-1 onnxruntime call on the model file as shipped (no
-rewrite, no float copy, no whole-frame view); a mask for every detection; every detection
-cropped and embedded by OSNet every frame (one batched call per frame); the tracker; the tracks
-file. onnxruntime with its default session options but ``intra_op_num_threads`` = ``--threads`` (2).
+the 3x2 tiles (``--tiles``: ours on other frame sizes), each tile its own batch-1 onnxruntime
+call on the model file as shipped (no rewrite, no float copy, no whole-frame view); a mask for
+every detection; every detection cropped and embedded by OSNet every frame (one batched call
+per frame); the tracker; the tracks file. onnxruntime with its default session options but
+``intra_op_num_threads`` = ``--threads`` (2).
 
 Every setting is pinned here, so that a later change of the package's defaults does not move the
 reference. The box and mask decoding, merging of tiles, crops, tracker and output writer are the
@@ -56,12 +57,12 @@ def plain_session(path: Path, threads: int) -> ort.InferenceSession:
 class ReferenceDetector:
     """3x2 tiles, a batch-1 call per tile on the shipped model, masks for every detection."""
 
-    def __init__(self, threads: int) -> None:
+    def __init__(self, threads: int, tiles: tuple[int, int] = (3, 2)) -> None:
         path = find_model(DETECTOR_MODEL)
         # The package's decoder, used for letterboxing and decoding only; inference runs on a
         # session of the file as shipped (fixed batch 1), once per tile.
         self.decoder = YoloSegDetector(
-            path, tiles=(3, 2), full_frame=False, threads=1, dequantize=False
+            path, tiles=tiles, full_frame=False, threads=1, dequantize=False
         )
         self.session = plain_session(path, threads)
         self.input_name = self.session.get_inputs()[0].name
@@ -97,12 +98,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--features", default="segmented", help="re-ID crops (segment.FEATURES)")
     ap.add_argument("--motion", default="frvo")
     ap.add_argument("--threads", type=int, default=2, help="onnxruntime intra-op threads")
+    ap.add_argument("--tiles", default="3x2", help="COLUMNSxROWS tiles of the segmenter")
     args = ap.parse_args(argv)
+    cols, rows_ = (int(v) for v in args.tiles.lower().split("x"))
     start = time.perf_counter()
     timer = StageTimes(seconds=dict.fromkeys(STAGES, 0.0))
     with timer.stage("load"):
         ort.set_default_logger_severity(3)
-        detector = ReferenceDetector(args.threads)
+        detector = ReferenceDetector(args.threads, (cols, rows_))
         reid = ReID(find_model(REID_MODEL), threads=args.threads, batch_size=64)
         if reid.rewritten:
             raise SystemExit("the reference expects the shipped OSNet (dynamic batch)")

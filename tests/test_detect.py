@@ -9,12 +9,12 @@ import numpy as np
 import onnx
 import pytest
 from conftest import shared_path
+from densepeds.boxes import intersections, iou_matrix
 from densepeds.detect import make_detector
 from densepeds.detect.onnxutil import dequantized, load_model, make_session, with_dynamic_batch
 from densepeds.detect.precomputed import PrecomputedDetector
 from densepeds.detect.tiling import (
     auto_grid,
-    iou_matrix,
     make_tiles,
     merge_views,
     nms,
@@ -80,6 +80,25 @@ def test_nms_matches_brute_force(seed: int) -> None:
     boxes = np.c_[xy, xy + rng.uniform(5, 40, (60, 2))]
     scores = rng.random(60)
     assert nms(boxes, scores, 0.4).tolist() == brute_force_nms(boxes, scores, 0.4)
+
+
+def test_box_intersections_and_iou_match_brute_force() -> None:
+    rng = np.random.default_rng(7)
+    xy = rng.uniform(0, 50, (12, 2))
+    a = np.c_[xy, xy + rng.uniform(0, 30, (12, 2))]
+    b = a[::-1] + 3.0
+    for i in range(len(a)):
+        for j in range(len(b)):
+            iw = max(0.0, min(a[i, 2], b[j, 2]) - max(a[i, 0], b[j, 0]))
+            ih = max(0.0, min(a[i, 3], b[j, 3]) - max(a[i, 1], b[j, 1]))
+            area_a = (a[i, 2] - a[i, 0]) * (a[i, 3] - a[i, 1])
+            area_b = (b[j, 2] - b[j, 0]) * (b[j, 3] - b[j, 1])
+            assert intersections(a, b)[i, j] == pytest.approx(iw * ih, abs=1e-9)
+            want = iw * ih / (area_a + area_b - iw * ih)
+            assert iou_matrix(a, b)[i, j] == pytest.approx(want, abs=1e-12)
+    assert iou_matrix(np.zeros((0, 4)), b).shape == (0, len(b))
+    with pytest.raises(InputError, match="inverted"):
+        iou_matrix(np.array([[5.0, 0, 1, 1]]), b)
 
 
 def test_merge_drops_cut_box_seen_whole_elsewhere() -> None:

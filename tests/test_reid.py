@@ -225,3 +225,21 @@ def test_reuse_keeps_embeddings_only_where_iou_alone_decides(tmp_path: Path) -> 
     for bad in ({"min_iou": 0.2, "max_other_iou": 0.3}, {"max_reuses": -1}):
         with pytest.raises(ParameterError):
             ReusePolicy(**bad)  # type: ignore[arg-type]
+
+
+def test_smaller_input_size_runs_the_same_network_on_smaller_crops() -> None:
+    model = shared_path("models", "osnet_x0_25_msmt17.onnx")
+    full = ReID(model, threads=1)
+    small = ReID(model, threads=1, input_size=(128, 64))
+    assert (full.height, full.width) == (256, 128)
+    assert (small.height, small.width) == (128, 64) and small.dim == full.dim
+    rng = np.random.default_rng(3)
+    crops = [rng.integers(0, 256, (200, 90, 3), dtype=np.uint8) for _ in range(3)]
+    a, b = full.embed_crops(crops), small.embed_crops(crops)
+    assert b.shape == a.shape
+    np.testing.assert_allclose(np.linalg.norm(b, axis=1), 1.0, rtol=1e-5)
+    # The same crops at a quarter of the pixels: close to the full-size embedding, not equal.
+    cos = np.sum(a * b, axis=1)
+    assert np.all(cos > 0.5) and np.all(cos < 0.9999)
+    with pytest.raises(ModelError):
+        ReID(model, threads=1, input_size=(0, 64))

@@ -21,8 +21,11 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 import numpy.typing as npt
 
+from densepeds.boxes import box_area, intersections, iou_matrix
 from densepeds.errors import InputError, ParameterError
+from densepeds.frames import check_frame
 from densepeds.presets import Preset, get_preset, preset_for
+from densepeds.segment import FEATURES as CROP_FEATURES
 from densepeds.types import Detections
 from densepeds.video import FrameRange, FrameSource, open_source, parse_frame_range
 
@@ -42,9 +45,9 @@ __all__ = [
 ]
 
 MOTIONS = ("frvo", "rvo", "sf", "cv")
-# segmented: the method's white fill outside the mask; bbox: the plain crop; masked_*: other
-# maskings (densepeds.segment); none: motion only.
-FEATURES = ("segmented", "bbox", "none", "masked_pool", "masked_mean", "masked_blur")
+# The appearance features of densepeds.segment (segmented: the method's white fill outside the
+# mask; bbox: the plain crop; masked_*: other maskings), or none: motion only.
+FEATURES = (*CROP_FEATURES, "none")
 # The method's segmented boxes (white fill outside the mask). With the int8 detector,
 # mask-weighted pooling (masked_pool) beat them on both real videos and was the default; with
 # the float detector and its preset it is better on MOT20-01-dev (41.1 / 55.2 vs 40.7 / 54.1)
@@ -135,13 +138,8 @@ def suppress_duplicates(
     if n < 2 or (iou >= 1.0 and containment >= 1.0 and not use_masks):
         return np.arange(n)
     b = dets.boxes.astype(np.float64)
-    area = np.maximum(b[:, 2] - b[:, 0], 0) * np.maximum(b[:, 3] - b[:, 1], 0)
-    iw = np.minimum(b[:, None, 2], b[None, :, 2]) - np.maximum(b[:, None, 0], b[None, :, 0])
-    ih = np.minimum(b[:, None, 3], b[None, :, 3]) - np.maximum(b[:, None, 1], b[None, :, 1])
-    inter = np.clip(iw, 0, None) * np.clip(ih, 0, None)
-    union = area[:, None] + area[None, :] - inter
-    overlap = inter / np.maximum(union, 1e-9)
-    inside = inter / np.maximum(area[None, :], 1e-9)  # [i, j]: share of box j inside box i
+    overlap = iou_matrix(b, b)
+    inside = intersections(b, b) / np.maximum(box_area(b)[None, :], 1e-9)  # [i, j]: j in i
     duplicate = (overlap > iou) | (inside > containment)  # [i, j]: i kept suppresses j
     if use_masks:
         for i, j in zip(*np.nonzero(np.triu(overlap > mask_min_iou, 1)), strict=True):
@@ -296,15 +294,8 @@ class Pipeline:
         embeddings: npt.NDArray[np.float32] | None = None,
     ) -> Tracks:
         """``step`` without the frame counter (used by ``run`` which counts itself)."""
-        if frame is not None and (
-            not isinstance(frame, np.ndarray)
-            or frame.dtype != np.uint8
-            or frame.ndim != 3
-            or frame.shape[2] != 3
-        ):
-            shape = getattr(frame, "shape", None)
-            raise InputError(f"frame must be a BGR uint8 array [H, W, 3], got {shape}")
         if frame is not None:
+            check_frame(frame)
             self.set_image_size(frame.shape[1], frame.shape[0])
         if detections is None:
             if frame is None:

@@ -18,10 +18,10 @@ import numpy.typing as npt
 import onnxruntime as ort
 
 from densepeds.detect import onnxutil
-from densepeds.detect.yoloseg import check_frame
 from densepeds.errors import ModelError, ParameterError
+from densepeds.frames import check_frame
 from densepeds.modelfiles import find_model
-from densepeds.segment import box_region, crop_mask, crops_for
+from densepeds.segment import bbox_crop, crops_for, person_masks
 from densepeds.types import Detections
 
 DEFAULT_MODEL = "osnet_x0_25_msmt17.onnx"
@@ -79,6 +79,7 @@ class ReID:
         threads: int | None = None,
         batch_size: int = 32,
         reuse: bool | ReusePolicy = False,
+        input_size: tuple[int, int] | None = None,
     ) -> None:
         if batch_size < 1:
             raise ParameterError(f"batch_size must be >= 1, got {batch_size}")
@@ -87,7 +88,10 @@ class ReID:
         path = find_model(DEFAULT_MODEL) if model is None else find_model(str(model))
         self.path: Path = path
         self.batch_size = batch_size
-        self.session, self.rewritten = onnxutil.batched_session(path, threads)
+        self.input_size = input_size
+        self.session, self.rewritten = onnxutil.batched_session(
+            path, threads, input_size=input_size
+        )
         inputs = onnxutil.specs(self.session.get_inputs())
         outputs = onnxutil.specs(self.session.get_outputs())
         if len(inputs) != 1 or len(inputs[0].shape) != 4 or len(outputs) < 1:
@@ -136,7 +140,9 @@ class ReID:
         """The model with mask-weighted final pooling, built on first use."""
         if self._pooled is None:
             model = onnxutil.load_model(self.path)
-            if onnxutil.has_fixed_batch(model):
+            if self.input_size is not None:
+                model = onnxutil.with_input_size(model, *self.input_size)
+            if onnxutil.has_fixed_batch(model) or self.input_size is not None:
                 model = onnxutil.with_dynamic_batch(model)
             pooled, size = onnxutil.with_weighted_final_pool(model)
             self._pooled = (onnxutil.make_session(pooled, self.threads), size)
@@ -145,17 +151,7 @@ class ReID:
     def _run(
         self, batch_bgr: npt.NDArray[np.uint8], weights: npt.NDArray[np.float32] | None = None
     ) -> npt.NDArray[np.float32]:
-        k = self.kind
-        x = batch_bgr[..., ::-1] if k.rgb else batch_bgr
-        if k.dtype is np.uint8:
-            inp = np.ascontiguousarray(x)
-        else:
-            mul = np.float32(k.scale) / np.asarray(k.std, np.float32)
-            sub = np.asarray(k.mean, np.float32) / np.asarray(k.std, np.float32)
-            inp = x.astype(np.float32) * mul - sub
-        if k.layout == "NCHW":
-            inp = inp.transpose(0, 3, 1, 2)
-        feed: dict[str, np.ndarray] = {self.input_name: np.ascontiguousarray(inp)}
+        feed: dict[str, np.ndarray] = {self.input_name: self._input(batch_bgr)}
         if weights is None:
             out = self.session.run(None, feed)[0]
         else:
@@ -163,6 +159,26 @@ class ReID:
             feed[onnxutil.POOL_WEIGHTS] = weights
             out = session.run(None, feed)[0]
         return np.asarray(out, np.float32).reshape(len(batch_bgr), -1)
+
+    def _input(self, batch_bgr: npt.NDArray[np.uint8]) -> np.ndarray:
+        """The model's input tensor for BGR images [N, H, W, 3] of its input size."""
+        k = self.kind
+        x = batch_bgr[..., ::-1] if k.rgb else batch_bgr
+        if k.dtype is np.uint8:
+            inp = np.ascontiguousarray(x)
+            return inp.transpose(0, 3, 1, 2).copy() if k.layout == "NCHW" else inp
+        mul = np.float32(k.scale) / np.asarray(k.std, np.float32)
+        sub = np.asarray(k.mean, np.float32) / np.asarray(k.std, np.float32)
+        if k.layout == "NHWC":
+            return np.ascontiguousarray(x * mul - sub, np.float32)
+        # One pass per channel straight into the planar layout (the same float32 arithmetic
+        # as x * mul - sub, without the full-size temporaries and the transposing copy).
+        n, h, w, _ = x.shape
+        out = np.empty((n, 3, h, w), np.float32)
+        for c in range(3):
+            np.multiply(x[..., c], mul[c], out=out[:, c], dtype=np.float32)
+            out[:, c] -= sub[c]
+        return out
 
     def embed_crops(
         self,
@@ -245,18 +261,10 @@ class ReID:
             half = (boxes[:, 3] - boxes[:, 1]) * (self.width / self.height) / 2
             boxes[:, 0], boxes[:, 2] = centre - half, centre + half
             dets = Detections(boxes.astype(np.float32), dets.scores, dets.masks, dets.mask_boxes)
-        if features == "masked_pool":
-            regions = [box_region(b, frame.shape[1], frame.shape[0]) for b in dets.boxes]
-            person = [
-                crop_mask(
-                    r,
-                    None if dets.masks is None else dets.masks[i],
-                    None if dets.mask_boxes is None else dets.mask_boxes[i],
-                )
-                for i, r in enumerate(regions)
-            ]
-            return self.embed_crops(crops_for(frame, dets, "bbox"), person)
-        return self.embed_crops(crops_for(frame, dets, features))
+        crops = crops_for(frame, dets, features)
+        if features == "masked_pool":  # plain crops, the masks weight the final pooling
+            return self.embed_crops(crops, person_masks(frame, dets))
+        return self.embed_crops(crops)
 
 
 @dataclass(frozen=True)
@@ -301,8 +309,7 @@ def thumbnails(frame: npt.NDArray[np.uint8], boxes: npt.ArrayLike) -> npt.NDArra
     b = np.asarray(boxes, np.float64).reshape(-1, 4)
     out = np.empty((len(b), THUMB_SIZE[1], THUMB_SIZE[0], 3), np.float32)
     for i, box in enumerate(b):
-        x0, y0, x1, y1 = box_region(box, frame.shape[1], frame.shape[0])
-        out[i] = cv2.resize(frame[y0:y1, x0:x1], THUMB_SIZE, interpolation=cv2.INTER_AREA)
+        out[i] = cv2.resize(bbox_crop(frame, box), THUMB_SIZE, interpolation=cv2.INTER_AREA)
     return out
 
 
@@ -313,7 +320,7 @@ def reuse_sources(
     prev: _Previous,
 ) -> npt.NDArray[np.intp]:
     """For each current box, the previous detection whose embedding it keeps, or -1."""
-    from densepeds.detect.tiling import iou_matrix
+    from densepeds.boxes import iou_matrix
 
     cur = np.asarray(boxes, np.float64).reshape(-1, 4)
     source = np.full(len(cur), -1, np.intp)

@@ -20,7 +20,8 @@ WHITE = (255, 255, 255)
 IMAGENET_MEAN_BGR = (104, 116, 124)  # 255 * (0.406, 0.456, 0.485)
 BLUR_SIGMA_FRACTION = 0.08  # of the crop height: enough to wipe out a neighbour's features
 
-# feature name -> background treatment; "bbox" is the plain crop.
+# Appearance features from crops: "bbox" is the plain crop, "masked_pool" the plain crop with the
+# mask weighting the re-ID network's final pooling, the others repaint the background.
 FEATURES = ("segmented", "bbox", "masked_mean", "masked_blur", "masked_pool")
 
 
@@ -118,6 +119,19 @@ def crops_for(frame: Image, dets: Detections, features: str = "segmented") -> li
     ]
 
 
+def person_masks(frame: Image, dets: Detections) -> list[npt.NDArray[np.bool_]]:
+    """Each detection's person mask over its plain crop (``bbox_crop``); no masks: all True."""
+    regions = [box_region(b, frame.shape[1], frame.shape[0]) for b in dets.boxes]
+    return [
+        crop_mask(
+            r,
+            None if dets.masks is None else dets.masks[i],
+            None if dets.mask_boxes is None else dets.mask_boxes[i],
+        )
+        for i, r in enumerate(regions)
+    ]
+
+
 def masks_for_boxes(
     dets: Detections, boxes: npt.ArrayLike, min_iou: float = 0.5
 ) -> tuple[Detections, npt.NDArray[np.intp]]:
@@ -127,7 +141,7 @@ def masks_for_boxes(
     the matched boxes carrying their detection's mask, and the indices of those boxes.
     """
     from densepeds._core import linear_sum_assignment
-    from densepeds.detect.tiling import iou_matrix
+    from densepeds.boxes import iou_matrix
 
     target = np.asarray(boxes, np.float64).reshape(-1, 4)
     if len(target) == 0 or len(dets) == 0 or dets.masks is None or dets.mask_boxes is None:

@@ -24,9 +24,10 @@ max_age                 int    60       0..=4294967295       xi: frames a confir
                                                              unmatched before it is deleted
 appearance_threshold    float  0.2      [0, 2]               lambda: largest cosine distance for an
                                                              appearance match (stage 1)
-gallery_size            int    20       >= 1                 embeddings kept per track; the
-                                                             appearance cost is the smallest
-                                                             distance to them
+gallery_size            int    20       >= 1                 embeddings remembered per track,
+                                                             summarised in at most 8 rows (means of
+                                                             consecutive ones); the appearance cost
+                                                             is the smallest distance to a row
 gate_radius             float  1.0      (0, inf]             rho: a detection matches a track only
                                                              within this many track box heights
                                                              (inf: off)

@@ -398,7 +398,7 @@ tracker_params! {
         appearance_threshold: f64 = 0.2, closed(0.0, 2.0),
             "lambda: largest cosine distance for an appearance match (stage 1)";
         gallery_size: usize = 20, ints(1, USIZE_MAX),
-            "embeddings kept per track; the appearance cost is the smallest distance to them";
+            "embeddings remembered per track, summarised in at most 8 rows (means of consecutive ones); the appearance cost is the smallest distance to a row";
         gate_radius: f64 = 1.0, open_closed(0.0, f64::INFINITY),
             "rho: a detection matches a track only within this many track box heights (inf: off)";
         iou_threshold: f64 = 0.3, UNIT,

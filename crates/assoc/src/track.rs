@@ -1,11 +1,11 @@
 //! One track's state: the FRVO agent (centre, velocity, preferred velocity, ellipse from the box),
-//! lifecycle counters and a bounded appearance gallery.
+//! lifecycle counters and a bounded, summarised appearance gallery.
 //!
 //! Mapping from a box of size `w x h` to the FRVO ellipse: `l = ellipse_l_scale * h` (the visible
 //! face, along the motion) and `w = ellipse_w_scale * w` (the shoulders, across it); the agent sits
 //! at the box centre. Velocities are in pixels per frame.
 
-use crate::cost::{box_from_centre, centre, dot, BBox};
+use crate::cost::{box_from_centre, centre, max_dot, normalise, BBox};
 use crate::params::TrackerParams;
 use nalgebra::Vector2;
 use std::collections::VecDeque;
@@ -37,10 +37,7 @@ pub(crate) struct Track {
     pub score: f64,
     /// Detection matched in the current frame.
     pub det_index: Option<usize>,
-    /// Ring buffer of unit-length embeddings, `gallery_len` rows of the tracker's dimension.
-    gallery: Vec<f32>,
-    gallery_len: usize,
-    gallery_next: usize,
+    gallery: Gallery,
 }
 
 fn to_vec(c: [f64; 2]) -> Vector2<f64> {
@@ -76,12 +73,10 @@ impl Track {
             occluded: false,
             score,
             det_index: Some(det_index),
-            gallery: Vec::new(),
-            gallery_len: 0,
-            gallery_next: 0,
+            gallery: Gallery::new(gallery_size),
         };
         if let Some(e) = embedding {
-            t.add_embedding(e, gallery_size);
+            t.gallery.add(e);
         }
         t
     }
@@ -160,7 +155,7 @@ impl Track {
         self.score = score;
         self.det_index = Some(det_index);
         if let Some(e) = embedding {
-            self.add_embedding(e, p.gallery_size);
+            self.gallery.add(e);
         }
     }
 
@@ -173,31 +168,193 @@ impl Track {
         self.det_index = None;
     }
 
-    fn add_embedding(&mut self, e: &[f32], capacity: usize) {
-        let d = e.len();
-        if self.gallery_len < capacity {
-            self.gallery.extend_from_slice(e);
-            self.gallery_len += 1;
-        } else {
-            // Full: overwrite the oldest row.
-            let k = self.gallery_next;
-            self.gallery[k * d..(k + 1) * d].copy_from_slice(e);
-            self.gallery_next = (k + 1) % self.gallery_len;
+    pub fn has_gallery(&self) -> bool {
+        self.gallery.rows > 0
+    }
+
+    /// Smallest cosine distance from `e` (unit length) to the gallery.
+    pub fn appearance_distance(&self, e: &[f32]) -> f64 {
+        self.gallery.distance(e)
+    }
+}
+
+/// Rows a gallery compares against at most, whatever its capacity.
+pub(crate) const GALLERY_ROWS: usize = 8;
+
+/// A track's appearance: the last `capacity` embeddings (unit length), summarised in at most
+/// [`GALLERY_ROWS`] rows. Each row is the normalised mean of `block` consecutive embeddings,
+/// `block = ceil(capacity / GALLERY_ROWS)`; when full, the oldest row gives way. With a capacity
+/// of at most [`GALLERY_ROWS`] every row is one embedding, as stored. An all-zero embedding (no
+/// appearance) is not stored.
+#[derive(Clone, Debug)]
+struct Gallery {
+    /// `rows` unit-length rows of the embeddings' dimension, row-major.
+    data: Vec<f32>,
+    rows: usize,
+    max_rows: usize,
+    /// Embeddings per row.
+    block: usize,
+    /// The row being filled, and how many embeddings it holds so far (0: start a new row).
+    current: usize,
+    filled: usize,
+    /// Sum of the current row's embeddings (only while `block > 1`).
+    sum: Vec<f32>,
+}
+
+impl Gallery {
+    fn new(capacity: usize) -> Self {
+        let capacity = capacity.max(1);
+        let block = capacity.div_ceil(GALLERY_ROWS);
+        Self {
+            data: Vec::new(),
+            rows: 0,
+            max_rows: capacity.div_ceil(block),
+            block,
+            current: 0,
+            filled: 0,
+            sum: Vec::new(),
         }
     }
 
-    pub fn has_gallery(&self) -> bool {
-        self.gallery_len > 0
+    fn add(&mut self, e: &[f32]) {
+        let d = e.len();
+        if d == 0 || e.iter().all(|&x| x == 0.0) {
+            return;
+        }
+        if self.filled == 0 {
+            // Start a row: append while there is room, else overwrite the oldest.
+            if self.rows < self.max_rows {
+                self.current = self.rows;
+                self.data.extend_from_slice(e);
+                self.rows += 1;
+            } else {
+                self.current = (self.current + 1) % self.rows;
+            }
+            self.sum.clear();
+        }
+        let row = &mut self.data[self.current * d..(self.current + 1) * d];
+        if self.block == 1 {
+            row.copy_from_slice(e);
+        } else {
+            if self.sum.is_empty() {
+                self.sum.resize(d, 0.0);
+            }
+            self.sum.iter_mut().zip(e).for_each(|(s, &x)| *s += x);
+            row.copy_from_slice(&self.sum);
+            normalise(row);
+        }
+        self.filled = (self.filled + 1) % self.block;
     }
 
-    /// Smallest cosine distance from `e` (unit length) to the gallery (unit-length rows).
-    pub fn appearance_distance(&self, e: &[f32]) -> f64 {
+    /// Smallest cosine distance from `e` (unit length) to the rows.
+    fn distance(&self, e: &[f32]) -> f64 {
         let d = e.len();
-        let best = self
-            .gallery
-            .chunks_exact(d)
-            .map(|g| dot(g, e))
-            .fold(f32::NEG_INFINITY, f32::max);
-        (1.0 - f64::from(best)).max(0.0)
+        if d == 0 {
+            return 1.0;
+        }
+        (1.0 - f64::from(max_dot(&self.data, e))).max(0.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn unit(seed: u64, d: usize) -> Vec<f32> {
+        // A small deterministic generator: the test needs spread-out vectors, not randomness.
+        let mut x = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        let mut v: Vec<f32> = (0..d)
+            .map(|_| {
+                x = x
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                ((x >> 33) as f32 / (1u64 << 31) as f32) - 0.5
+            })
+            .collect();
+        normalise(&mut v);
+        v
+    }
+
+    /// Cosine distance by the definition, in f64.
+    fn cosine(a: &[f64], b: &[f32]) -> f64 {
+        let dot: f64 = a.iter().zip(b).map(|(x, &y)| x * f64::from(y)).sum();
+        let na = a.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let nb = b
+            .iter()
+            .map(|&y| f64::from(y) * f64::from(y))
+            .sum::<f64>()
+            .sqrt();
+        1.0 - dot / (na * nb)
+    }
+
+    /// The gallery's answer by brute force: the last `capacity` embeddings cut into blocks of
+    /// `block` in order of arrival, each block's mean a row, the nearest row wins.
+    fn brute_force(history: &[Vec<f32>], capacity: usize, e: &[f32]) -> f64 {
+        let block = capacity.div_ceil(GALLERY_ROWS);
+        let rows = capacity.div_ceil(block);
+        let blocks: Vec<&[Vec<f32>]> = history.chunks(block).collect();
+        let kept = &blocks[blocks.len().saturating_sub(rows)..];
+        kept.iter()
+            .map(|b| {
+                let mut mean = vec![0.0f64; e.len()];
+                for v in b.iter() {
+                    mean.iter_mut()
+                        .zip(v)
+                        .for_each(|(m, &x)| *m += f64::from(x));
+                }
+                cosine(&mean, e)
+            })
+            .fold(f64::INFINITY, f64::min)
+            .max(0.0)
+    }
+
+    #[test]
+    fn gallery_matches_brute_force_block_means() {
+        let d = 37;
+        for capacity in [1, 3, 8, 9, 20, 100] {
+            let mut g = Gallery::new(capacity);
+            let mut history = Vec::new();
+            for k in 0..250u64 {
+                let e = unit(k, d);
+                g.add(&e);
+                history.push(e);
+                assert!(g.rows <= GALLERY_ROWS);
+                for probe in [unit(1000 + k, d), history[history.len() / 2].clone()] {
+                    let want = brute_force(&history, capacity, &probe);
+                    let got = g.distance(&probe);
+                    assert!(
+                        (got - want).abs() < 1e-5,
+                        "capacity {capacity}, k {k}: {got} vs {want}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn small_gallery_keeps_the_embeddings_exactly() {
+        let d = 16;
+        let mut g = Gallery::new(3);
+        for k in 0..5u64 {
+            g.add(&unit(k, d));
+        }
+        // The last three, bit for bit (in ring order), the first two gone.
+        let rows: Vec<Vec<f32>> = g.data.chunks_exact(d).map(<[f32]>::to_vec).collect();
+        for k in 2..5u64 {
+            assert!(rows.contains(&unit(k, d)));
+        }
+        assert!(!rows.contains(&unit(0, d)) && !rows.contains(&unit(1, d)));
+    }
+
+    #[test]
+    fn zero_embedding_is_not_stored() {
+        let mut g = Gallery::new(4);
+        g.add(&[0.0; 8]);
+        assert_eq!(g.rows, 0);
+        g.add(&unit(1, 8));
+        g.add(&[0.0; 8]);
+        assert_eq!(g.rows, 1);
     }
 }

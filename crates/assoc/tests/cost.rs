@@ -1,6 +1,6 @@
 //! IoU and cosine distance against direct formulas.
 
-use assoc::cost::{cosine_distance, cosine_distance_matrix, iou, iou_matrix, validate_boxes};
+use assoc::cost::{cosine_distance, cosine_distance_matrix, dot, iou, iou_matrix, validate_boxes};
 use proptest::prelude::*;
 
 fn boxes() -> impl Strategy<Value = [f64; 4]> {
@@ -10,6 +10,22 @@ fn boxes() -> impl Strategy<Value = [f64; 4]> {
 
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(2000))]
+
+    #[test]
+    fn dot_matches_a_sum_in_f64(
+        pairs in prop::collection::vec((-1.0..1.0f32, -1.0..1.0f32), 0..700)
+    ) {
+        let (a, b): (Vec<f32>, Vec<f32>) = pairs.into_iter().unzip();
+        let want: f64 = a.iter().zip(&b).map(|(&x, &y)| f64::from(x) * f64::from(y)).sum();
+        let bound: f64 = a.iter().zip(&b).map(|(&x, &y)| f64::from((x * y).abs())).sum();
+        // f32 rounding: each of n additions errs by at most one ulp of the running magnitude.
+        let tol = 1e-6 * bound.max(1e-30) * (a.len() as f64).max(1.0) + 1e-30;
+        prop_assert!((f64::from(dot(&a, &b)) - want).abs() <= tol);
+        // Extra values in the longer slice are ignored.
+        let mut longer = a.clone();
+        longer.push(5.0);
+        prop_assert_eq!(dot(&longer, &b), dot(&a, &b));
+    }
 
     #[test]
     fn iou_is_symmetric_bounded_and_matches_rasterised(a in boxes(), b in boxes()) {

@@ -16,8 +16,8 @@ import numpy.typing as npt
 
 from densepeds.detect import onnxutil
 from densepeds.detect.tiling import Tile, TilesSpec, cut_flags, make_tiles, merge_views, parse_grid
-from densepeds.detect.yoloseg import check_frame
 from densepeds.errors import ModelError, ParameterError
+from densepeds.frames import check_frame
 from densepeds.types import Detections
 
 EXPECTED = (

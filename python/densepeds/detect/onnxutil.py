@@ -118,16 +118,44 @@ def with_dynamic_batch(model: onnx.ModelProto) -> onnx.ModelProto:
     return out
 
 
+def with_input_size(model: onnx.ModelProto, height: int, width: int) -> onnx.ModelProto:
+    """A copy of an NCHW image model whose input is ``height`` x ``width``.
+
+    Only for fully convolutional graphs (sizes flow from the input: no constant spatial shape
+    inside); onnxruntime rejects the copy at load time otherwise.
+    """
+    out = onnx.ModelProto()
+    out.CopyFrom(model)
+    dims = out.graph.input[0].type.tensor_type.shape.dim
+    if len(dims) != 4 or dims[1].dim_value != 3 or height < 1 or width < 1:
+        raise ModelError(f"cannot give a {height}x{width} input to a model whose input is not NCHW")
+    for d, v in zip(dims[2:], (height, width), strict=True):
+        d.Clear()
+        d.dim_value = v
+    for value in out.graph.output:
+        del value.type.tensor_type.shape.dim[:]
+    del out.graph.value_info[:]
+    return out
+
+
 def batched_session(
-    path: Path, threads: int | None, *, dequantize: bool = False
+    path: Path,
+    threads: int | None,
+    *,
+    dequantize: bool = False,
+    input_size: tuple[int, int] | None = None,
 ) -> tuple[ort.InferenceSession, bool]:
     """A session accepting any batch size, and whether the model had to be rewritten for it.
 
-    ``dequantize`` runs a float copy of a QDQ-quantised model (see :func:`dequantized`).
+    ``dequantize`` runs a float copy of a QDQ-quantised model (see :func:`dequantized`);
+    ``input_size`` (height, width) resizes an NCHW model's input (see :func:`with_input_size`).
     """
     model = load_model(path)
     if dequantize:
         model = dequantized(model)
+    if input_size is not None:
+        model = with_input_size(model, *input_size)
+        return make_session(with_dynamic_batch(model), threads), True
     if not has_fixed_batch(model):
         return make_session(model, threads), False
     return make_session(with_dynamic_batch(model), threads), True

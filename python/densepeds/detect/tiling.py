@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from densepeds.boxes import box_area, intersections, iou_matrix
 from densepeds.errors import ParameterError
 
 FloatArray = npt.NDArray[np.float64]
@@ -102,23 +103,6 @@ def cut_flags(boxes: FloatArray, tile: Tile) -> npt.NDArray[np.bool_]:
     if bottom:
         cut |= boxes[:, 3] >= tile.y1 - CUT_MARGIN
     return cut
-
-
-def box_area(boxes: FloatArray) -> FloatArray:
-    return np.clip(boxes[:, 2] - boxes[:, 0], 0, None) * np.clip(boxes[:, 3] - boxes[:, 1], 0, None)
-
-
-def intersections(a: FloatArray, b: FloatArray) -> FloatArray:
-    """Pairwise intersection areas [len(a), len(b)]."""
-    w = np.minimum(a[:, None, 2], b[None, :, 2]) - np.maximum(a[:, None, 0], b[None, :, 0])
-    h = np.minimum(a[:, None, 3], b[None, :, 3]) - np.maximum(a[:, None, 1], b[None, :, 1])
-    return np.clip(w, 0, None) * np.clip(h, 0, None)
-
-
-def iou_matrix(a: FloatArray, b: FloatArray) -> FloatArray:
-    inter = intersections(a, b)
-    union = box_area(a)[:, None] + box_area(b)[None, :] - inter
-    return inter / np.maximum(union, 1e-9)
 
 
 def nms(boxes: FloatArray, scores: npt.NDArray[np.floating], iou_threshold: float) -> np.ndarray:

@@ -20,7 +20,8 @@ import numpy.typing as npt
 
 from densepeds.detect import onnxutil
 from densepeds.detect.tiling import Tile, TilesSpec, cut_flags, make_tiles, merge_views, parse_grid
-from densepeds.errors import InputError, ModelError, ParameterError
+from densepeds.errors import ModelError, ParameterError
+from densepeds.frames import check_frame
 from densepeds.types import Detections
 
 LETTERBOX_GREY = 114
@@ -58,16 +59,6 @@ class _View:
     tile: Tile
     scale: float
     is_tile: bool
-
-
-def check_frame(frame: npt.NDArray[np.uint8]) -> None:
-    if not isinstance(frame, np.ndarray) or frame.ndim != 3 or frame.shape[2] != 3:
-        shape = getattr(frame, "shape", None)
-        raise InputError(f"frame must be a BGR uint8 array [H, W, 3], got shape {shape}")
-    if frame.dtype != np.uint8:
-        raise InputError(f"frame must be uint8 BGR, got dtype {frame.dtype}")
-    if frame.shape[0] < 2 or frame.shape[1] < 2:
-        raise InputError(f"frame is too small: {frame.shape}")
 
 
 class YoloSegDetector:
