@@ -10,6 +10,7 @@ unchanged.
 
 from __future__ import annotations
 
+import fcntl
 import os
 import resource
 import socket
@@ -82,16 +83,19 @@ class WorkerModels:
         if model.ref is None:
             return model.path
         local = node_cache_dir() / f"{model.sha256[:16]}-{model.name}"
-        if not (local.is_file() and local.stat().st_size == model.size):
-            import ray
+        local.parent.mkdir(parents=True, exist_ok=True)
+        # One worker of the node copies the file; the others wait for it (a lock per model).
+        with open(local.with_name(f".{local.name}.lock"), "w") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            if not (local.is_file() and local.stat().st_size == model.size):
+                import ray
 
-            data = ray.get(model.ref[0])
-            local.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(dir=local.parent, prefix=f".{local.name}.")
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(data)
-            os.replace(tmp, local)
-            self.fetched.append(model.name)
+                data = ray.get(model.ref[0])
+                fd, tmp = tempfile.mkstemp(dir=local.parent, prefix=f".{local.name}.")
+                with os.fdopen(fd, "wb") as fh:
+                    fh.write(data)
+                os.replace(tmp, local)
+                self.fetched.append(model.name)
         return str(local)
 
     def _load(self, key: tuple[Any, ...], make: Any) -> Any:
