@@ -19,6 +19,7 @@ import argparse
 import json
 import os
 import re
+import resource
 import shutil
 import signal
 import socket
@@ -93,6 +94,7 @@ def sequential(clips: list[Path], out: Path) -> dict[str, Any]:
     out.mkdir(parents=True, exist_ok=True)
     per_clip = []
     before = load()
+    cpu_start = children_cpu()
     start = time.perf_counter()
     for clip in clips:
         t0 = time.perf_counter()
@@ -120,11 +122,14 @@ def sequential(clips: list[Path], out: Path) -> dict[str, Any]:
             }
         )
     wall = time.perf_counter() - start
+    cpu = children_cpu() - cpu_start
     frames = sum(c["frames"] for c in per_clip)
     return {
         "wall": wall,
         "frames": frames,
         "rate": frames / wall,
+        "cpu": cpu,
+        "busy": wall,
         "clips": per_clip,
         "load": f"{before} -> {load()}",
     }
@@ -154,11 +159,18 @@ def batch(
         "wall": wall,
         "frames": frames,
         "rate": frames / wall,
+        "cpu": sum(r["cpu_seconds"] for r in summary["inputs"]),
+        "busy": busy,
         "rate_started": frames / busy,
         "start": summary["start_seconds"],
         "summary": summary,
         "load": f"{before} -> {load()}",
     }
+
+
+def children_cpu() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
 
 
 def same_tracks(a: Path, b: Path, names: list[str]) -> bool:
@@ -307,13 +319,14 @@ def report(args: argparse.Namespace, rounds: list[dict[str, Any]], cluster: dict
         "## Throughput",
         "",
         "| round | mode | wall s | frames/s | x sequential | frames/s after Ray start | "
-        "x sequential | tracks = sequential | load |",
-        "|---|---|---:|---:|---:|---:|---:|---|---|",
+        "x sequential | CPU s per frame | cores busy | tracks = sequential | load |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---|---|",
     ]
     for i, r in enumerate(rounds, 1):
         seq = r["sequential"]
         lines.append(
-            f"| {i} | sequential | {seq['wall']:.1f} | {seq['rate']:.2f} | 1.00 | | | | "
+            f"| {i} | sequential | {seq['wall']:.1f} | {seq['rate']:.2f} | 1.00 | | | "
+            f"{seq['cpu'] / seq['frames']:.2f} | {seq['cpu'] / seq['busy']:.2f} | | "
             f"{seq['load']} |"
         )
         for key in ("batch1", "batch2"):
@@ -321,10 +334,15 @@ def report(args: argparse.Namespace, rounds: list[dict[str, Any]], cluster: dict
             lines.append(
                 f"| {i} | batch {key[-1]} | {b['wall']:.1f} | {b['rate']:.2f} | "
                 f"{b['rate'] / seq['rate']:.2f} | {b['rate_started']:.2f} | "
-                f"{b['rate_started'] / seq['rate']:.2f} | {b['same']} | {b['load']} |"
+                f"{b['rate_started'] / seq['rate']:.2f} | {b['cpu'] / b['frames']:.2f} | "
+                f"{b['cpu'] / b['busy']:.2f} | {b['same']} | {b['load']} |"
             )
     last = rounds[-1]
     lines += [
+        "",
+        "*CPU s per frame*: CPU time (all threads) of the `run` processes, or of the batch "
+        "workers' jobs, per frame; *cores busy*: that CPU time over the wall time (after Ray's "
+        "start for a batch): the cores the mode kept busy on a machine it shared.",
         "",
         "## Overhead per input and memory",
         "",

@@ -175,7 +175,7 @@ def _wait_running(record: Path, timeout: float = 120.0) -> int:
 
 
 def test_killed_worker_loses_only_its_input_and_the_rerun_completes_it(
-    ray_session: Any, tmp_path: Path
+    ray_session: Any, capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
     seqs = [_scene_seq(tmp_path / "in", seed, 6) for seed in (0, 1, 2)]
     out = tmp_path / "out"
@@ -192,9 +192,13 @@ def test_killed_worker_loses_only_its_input_and_the_rerun_completes_it(
     assert "worker lost" in (first.records[1].error or "")
     assert not (out / f"{seqs[1].name}.txt").exists()
 
-    # The rerun redoes only the killed input; the others keep their files untouched.
+    # The rerun redoes only the killed input; the others keep their files untouched, and what
+    # an interrupted job leaves in temporary files is removed.
     kept = {s.name: (out / f"{s.name}.txt").stat().st_mtime_ns for s in (seqs[0], seqs[2])}
+    leftover = out / f".{seqs[1].name}.txt.k1ll3d.tmp"
+    leftover.write_text("partial")
     second = batch.run(seqs, out, **options)
+    assert not leftover.exists()
     assert [r.skipped for r in second.records] == [True, False, True]
     assert [r.status for r in second.records] == ["done"] * 3
     assert kept == {s.name: (out / f"{s.name}.txt").stat().st_mtime_ns for s in (seqs[0], seqs[2])}
@@ -206,6 +210,8 @@ def test_killed_worker_loses_only_its_input_and_the_rerun_completes_it(
     # Now all is done for these settings; other settings redo every input.
     plan = batch.prepare(seqs, out, Settings(features="segmented")).items
     assert [(i.action, i.reason) for i in plan] == [("skip", "done")] * 3
+    rc = main(["batch", *map(str, seqs), "--out", str(out), "--features", "segmented", "--dry-run"])
+    assert rc == 0 and capsys.readouterr().out.count("| skip | done |") == 3
     plan = batch.prepare(seqs, out, Settings(features="none")).items
     assert [(i.action, i.reason) for i in plan] == [("run", "settings changed")] * 3
     # A changed input is redone.
@@ -213,3 +219,22 @@ def test_killed_worker_loses_only_its_input_and_the_rerun_completes_it(
     det.write_text(det.read_text() + "\n")
     plan = batch.prepare(seqs, out, Settings(features="segmented")).items
     assert [i.reason for i in plan] == ["done", "done", "input changed"]
+
+
+def test_readme_batch_commands_parse() -> None:
+    """Every `python -m densepeds batch ...` line in the README's batch section parses."""
+    import re
+
+    from conftest import REPO
+    from densepeds.cli import build_parser
+
+    text = (REPO / "README.md").read_text(encoding="utf-8")
+    section = re.search(
+        r"^## Many inputs at once: `densepeds batch`\n(.*?)(?=^## )", text, re.S | re.M
+    )
+    assert section, "README has no batch section"
+    commands = re.findall(r"^python -m densepeds (batch .*)$", section.group(1), re.M)
+    assert len(commands) >= 3
+    for line in commands:
+        args = build_parser().parse_args(line.split("#")[0].split())
+        assert args.command == "batch" and args.out is not None

@@ -19,6 +19,7 @@ import argparse
 import hashlib
 import os
 import sys
+import tempfile
 import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
@@ -205,6 +206,11 @@ def run(
         raise ParameterError(f"workers must be >= 1, got {workers}")
     start = time.perf_counter()
     prep = prepare(inputs, out_dir, settings)
+    try:  # an output folder that cannot be written fails the batch before any job
+        prep.out_dir.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=prep.out_dir).close()
+    except OSError as err:
+        raise ParameterError(f"--out {prep.out_dir}: cannot write there ({err})") from err
     todo = [item.job for item in prep.items if item.action == "run"]
     records = {item.job.input: item.record for item in prep.items if item.action == "skip"}
     start_seconds = 0.0

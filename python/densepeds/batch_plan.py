@@ -118,6 +118,7 @@ class JobRecord:
     seconds: float = 0.0  # the job's wall time: opening, model loading and tracking
     open_seconds: float = 0.0  # opening the input and getting the models
     load_seconds: float = 0.0  # loading models (0 when this worker had them already)
+    cpu_seconds: float = 0.0  # CPU time of the worker process (all its threads) on this job
     fetched_models: list[str] = field(default_factory=list)  # copied to this node by this job
     tracks_file: str | None = None
     video_file: str | None = None

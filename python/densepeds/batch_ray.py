@@ -42,7 +42,7 @@ def session(address: str | None, num_cpus: int | None) -> Any:
     address = address or os.environ.get(ADDRESS_ENV) or None
     kwargs: dict[str, Any] = {
         "include_dashboard": False,
-        "logging_level": logging.WARNING,
+        "logging_level": logging.ERROR,
         "log_to_driver": False,
     }
     try:

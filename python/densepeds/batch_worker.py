@@ -158,6 +158,7 @@ def run_job(
     from densepeds.cli import _one_line, _track_source, open_run
 
     start = time.perf_counter()
+    cpu_start = _cpu_seconds()
     record = new_record(job, settings_hash, "running")
     record.node = _node_name()
     record.pid = os.getpid()
@@ -185,6 +186,7 @@ def run_job(
     record.load_seconds = models.load_seconds
     record.fetched_models = models.fetched
     record.seconds = time.perf_counter() - start
+    record.cpu_seconds = _cpu_seconds() - cpu_start
     record.max_rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     write_record(job, record)
     return record
@@ -199,3 +201,8 @@ def _node_name() -> str:
     except ImportError:
         pass
     return socket.gethostname()
+
+
+def _cpu_seconds() -> float:
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_utime + usage.ru_stime
