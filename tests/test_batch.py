@@ -8,6 +8,7 @@ import json
 import logging
 import os
 import signal
+import socket
 import threading
 import time
 from collections.abc import Iterator
@@ -18,6 +19,7 @@ import pytest
 from conftest import shared_path
 from densepeds import batch
 from densepeds.batch_plan import Settings, expand_inputs, job_names
+from densepeds.batch_ray import check_reachable
 from densepeds.cli import main
 from densepeds.errors import InputError, ParameterError
 from densepeds.scene import make_scene
@@ -56,6 +58,9 @@ def test_inputs_expand_folders_and_globs(tmp_path: Path) -> None:
         (cams / "north/cam.mp4").resolve(),
         (cams / "south/cam.mp4").resolve(),
     ]
+    # A link is named as given, and counts once with what it points to.
+    (tmp_path / "cam7").symlink_to(seq)
+    assert expand_inputs([tmp_path / "cam7", seq]) == [tmp_path / "cam7"]
     # Inputs that share a name are told apart by their folder.
     assert job_names(found) == ["north-cam", "b", "south-cam", "frames", seq.name]
     with pytest.raises(InputError, match="no such file"):
@@ -85,6 +90,21 @@ def test_bad_batch_command_is_one_line(capsys: pytest.CaptureFixture[str], tmp_p
     rc = main(["batch", str(tmp_path), "--out", str(tmp_path / "o"), "--param", "bogus=1"])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and "bogus" in err[0], err
+    # Nothing listens at the address: one line at once (Ray alone would retry for minutes).
+    ray = pytest.importorskip("ray", reason="needs Ray: pip install 'densepeds[ray]'")
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]  # closed again: nothing listens there
+    with pytest.raises(ParameterError, match=f"cannot reach a Ray cluster at 127.0.0.1:{port}"):
+        check_reachable(f"127.0.0.1:{port}")
+    with pytest.raises(ParameterError, match="expected HOST:PORT"):
+        check_reachable("head-node")
+    if not ray.is_initialized():  # else batch.run would use the Ray already joined
+        seq = _scene_seq(tmp_path / "in", 0, 2, images=False)
+        argv = ["batch", str(seq), "--out", str(tmp_path / "o"), "--address", f"127.0.0.1:{port}"]
+        rc = main(argv)
+        err = capsys.readouterr().err.strip().splitlines()
+        assert rc == 2 and len(err) == 1 and "cannot reach a Ray cluster" in err[0], err
 
 
 # --- on a local Ray ----------------------------------------------------------------------------
@@ -125,7 +145,7 @@ def test_batch_equals_run_and_a_corrupt_input_fails_alone(
     # the built-in scene with images, and a corrupt video.
     inputs = [str(pets), str(pets / "vtest.avi"), str(scene), str(bad)]
     out = tmp_path / "out"
-    rc = main(["batch", *inputs, "--out", str(out), "--frames", "1:8", "--quiet"])
+    rc = main(["batch", *inputs, "--out", str(out), "--frames", "1:8", "--video", "--quiet"])
     table = capsys.readouterr().out
     assert rc == 1, table  # one input failed
     summary = json.loads((out / "batch.json").read_text())
@@ -146,6 +166,8 @@ def test_batch_equals_run_and_a_corrupt_input_fails_alone(
         ours = (out / f"{name}.txt").read_text()
         assert ours == (tmp_path / "run" / f"{name}.txt").read_text(), name
         assert len({line.split(",")[1] for line in ours.splitlines()}) == rec["tracks"]
+        video = out / f"{name}.mp4"
+        assert rec["video_file"] == video.name and video.stat().st_size > 0
         assert f"| {name} | done | 8 | {rec['tracks']} |" in table
 
     # The corrupt input fails with `run`'s own one-line message; nothing else is written for it.
@@ -153,7 +175,7 @@ def test_batch_equals_run_and_a_corrupt_input_fails_alone(
     assert rc == 2
     assert by_name["broken"]["status"] == "failed"
     assert err == f"densepeds run: error: {by_name['broken']['error']}"
-    assert not (out / "broken.txt").exists()
+    assert not (out / "broken.txt").exists() and not (out / "broken.mp4").exists()
     assert "| broken | failed |" in table
     # Each model file reached this (single) node once.
     fetched = [m for r in summary["inputs"] for m in r["fetched_models"]]

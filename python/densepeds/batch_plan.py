@@ -158,9 +158,10 @@ def is_input_folder(path: Path) -> bool:
 
 
 def expand_inputs(items: Iterable[str | os.PathLike[str]]) -> list[Path]:
-    """The inputs named by ``items``: videos, image folders and sequence folders as they are; a
-    folder of those (searched recursively, hidden entries skipped) and a glob expand to every
-    input inside. Order: as given, folders and globs sorted; duplicates dropped."""
+    """The inputs named by ``items`` (absolute paths): videos, image folders and sequence folders
+    as they are; a folder of those (searched recursively, hidden entries skipped) and a glob
+    expand to every input inside. Order: as given, folders and globs sorted; an input reached
+    twice (also through a link) counts once."""
     found: list[Path] = []
     for item in items:
         text = os.fspath(item)
@@ -175,12 +176,12 @@ def expand_inputs(items: Iterable[str | os.PathLike[str]]) -> list[Path]:
         if not path.exists():
             raise InputError(f"{path}: no such file or folder")
         found.extend(_expand_path(path, explicit=True))
-    unique: dict[Path, None] = {}
+    unique: dict[Path, Path] = {}  # by the file it is; named as given (a link keeps its name)
     for p in found:
-        unique.setdefault(p.resolve(), None)
+        unique.setdefault(p.resolve(), Path(os.path.abspath(p)))
     if not unique:
         raise InputError("no inputs: no videos, image folders or sequence folders found")
-    return list(unique)
+    return list(unique.values())
 
 
 def _expand_path(path: Path, explicit: bool) -> list[Path]:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import hashlib
 import logging
 import os
+import socket
 from collections.abc import Callable, Sequence
 from contextlib import contextmanager
 from pathlib import Path
@@ -47,6 +48,7 @@ def session(address: str | None, num_cpus: int | None) -> Any:
     }
     try:
         if address:
+            check_reachable(address)
             ray.init(address=address, **kwargs)
         else:
             ray.init(address="local", num_cpus=num_cpus, **kwargs)
@@ -57,6 +59,18 @@ def session(address: str | None, num_cpus: int | None) -> Any:
         yield ray
     finally:
         ray.shutdown()
+
+
+def check_reachable(address: str, timeout: float = 10.0) -> None:
+    """Fail at once, in one line, where nothing listens at a cluster's HOST:PORT (Ray itself
+    retries for many minutes)."""
+    host, sep, port = address.removeprefix("ray://").rpartition(":")
+    if not sep or not port.isdigit():
+        raise ParameterError(f"--address {address}: expected HOST:PORT")
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=timeout).close()
+    except OSError as err:
+        raise ParameterError(f"cannot reach a Ray cluster at {address}: {err}") from err
 
 
 def ship_models(ray: Any, files: dict[str, Path]) -> dict[str, ShippedModel]:
