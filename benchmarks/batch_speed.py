@@ -337,6 +337,7 @@ def report(args: argparse.Namespace, rounds: list[dict[str, Any]], cluster: dict
                 f"{b['rate_started'] / seq['rate']:.2f} | {b['cpu'] / b['frames']:.2f} | "
                 f"{b['cpu'] / b['busy']:.2f} | {b['same']} | {b['load']} |"
             )
+    lines += ["", *verdict(rounds)]
     last = rounds[-1]
     lines += [
         "",
@@ -368,6 +369,30 @@ def report(args: argparse.Namespace, rounds: list[dict[str, Any]], cluster: dict
         lines += ["", "## Two nodes on one machine", ""]
         lines += cluster_lines(cluster)
     return "\n".join(lines) + "\n"
+
+
+def verdict(rounds: list[dict[str, Any]]) -> list[str]:
+    """The issue's goals against these figures (median over rounds, after Ray's start)."""
+
+    def median(values: list[float]) -> float:
+        values = sorted(values)
+        mid = len(values) // 2
+        return values[mid] if len(values) % 2 else (values[mid - 1] + values[mid]) / 2
+
+    ratio = {
+        n: median([r[f"batch{n}"]["rate_started"] / r["sequential"]["rate"] for r in rounds])
+        for n in (1, 2)
+    }
+    whole = median([r["batch2"]["rate"] / r["sequential"]["rate"] for r in rounds])
+    busy = [r[k]["cpu"] / r[k]["busy"] for r in rounds for k in ("sequential", "batch1", "batch2")]
+    return [
+        f"Goals (median of {len(rounds)} round(s), after Ray's start): 2 workers >= 1.8x the "
+        f"sequential runs: {ratio[2]:.2f}x, {'met' if ratio[2] >= 1.8 else 'not met'} "
+        f"({whole:.2f}x with Ray's start); 1 worker no slower: {ratio[1]:.2f}x, "
+        f"{'met' if ratio[1] >= 1.0 else 'not met'}. Every mode kept {min(busy):.2f}-"
+        f"{max(busy):.2f} of the 2 cores busy on average: the machine was shared, so these "
+        "ratios measure the share of the cores each mode got as much as its parallelism.",
+    ]
 
 
 def cluster_lines(c: dict[str, Any]) -> list[str]:
