@@ -257,6 +257,22 @@ class Cluster:
                 proc.wait()
 
 
+def remove_model_copies(cluster: dict[str, Any]) -> None:
+    """Delete the models the cluster's nodes copied (one folder per node id)."""
+    from densepeds.batch_worker import node_cache_dir
+
+    nodes = {
+        rec["node"]
+        for part in (cluster.get("batch"), cluster.get("killed", {}).get("first"))
+        if part
+        for rec in (part["summary"]["inputs"] if "summary" in part else part["inputs"])
+        if rec.get("node")
+    }
+    for node in nodes:
+        for folder in node_cache_dir().parent.glob(f"{node}*"):
+            shutil.rmtree(folder, ignore_errors=True)
+
+
 def killed_worker(clips_dir: Path, out: Path, victim: str, address: str) -> dict[str, Any]:
     """A batch whose worker on ``victim`` is killed once it is running; then the rerun."""
     shutil.rmtree(out, ignore_errors=True)
@@ -487,6 +503,7 @@ def main() -> None:
                 cluster["killed_same"] = same_tracks(work / "seq", work / "killed", names)
             finally:
                 c.stop()
+                remove_model_copies(cluster)
         text = report(args, rounds, cluster)
         print(text)
         if args.out:

@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import shutil
 import signal
 import socket
 import threading
@@ -20,6 +21,7 @@ from conftest import shared_path
 from densepeds import batch
 from densepeds.batch_plan import Settings, expand_inputs, job_names
 from densepeds.batch_ray import check_reachable
+from densepeds.batch_worker import node_cache_dir
 from densepeds.cli import main
 from densepeds.errors import InputError, ParameterError
 from densepeds.scene import make_scene
@@ -125,6 +127,7 @@ def ray_session() -> Iterator[Any]:
     except Exception as err:  # the one place Ray tests may skip: Ray cannot start here
         pytest.skip(f"a local Ray cannot start here: {err}")
     yield ray
+    shutil.rmtree(node_cache_dir(), ignore_errors=True)  # this Ray node's copies of the models
     ray.shutdown()
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import hashlib
 import logging
 import os
+import shutil
 import socket
 from collections.abc import Callable, Sequence
 from contextlib import contextmanager
@@ -17,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from densepeds.batch_plan import Job, JobRecord, Settings, new_record, write_record
-from densepeds.batch_worker import ShippedModel, run_job
+from densepeds.batch_worker import ShippedModel, node_cache_dir, run_job
 from densepeds.errors import ParameterError
 
 ADDRESS_ENV = "RAY_ADDRESS"
@@ -58,6 +59,8 @@ def session(address: str | None, num_cpus: int | None) -> Any:
     try:
         yield ray
     finally:
+        if not address:  # this machine's copies of the models go with the local Ray
+            shutil.rmtree(node_cache_dir(), ignore_errors=True)
         ray.shutdown()
 
 

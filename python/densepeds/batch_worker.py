@@ -16,7 +16,7 @@ import resource
 import socket
 import tempfile
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -43,18 +43,13 @@ class ShippedModel:
     ref: list[Any] | None = None
 
 
-@dataclass
-class _Loaded:
-    """Models loaded in this worker process, kept for its next inputs."""
-
-    models: dict[tuple[Any, ...], Any] = field(default_factory=dict)
-
-
-_LOADED = _Loaded()
+# Models loaded in this worker process, kept for its next inputs.
+_LOADED: dict[tuple[Any, ...], Any] = {}
 
 
 def node_cache_dir() -> Path:
-    """Where shipped models are kept on this node (one folder per Ray node)."""
+    """Where shipped models are kept on this node: one folder per Ray node in the temporary
+    folder (a local Ray's is removed when the batch ends)."""
     node = "local"
     try:
         import ray
@@ -99,11 +94,11 @@ class WorkerModels:
         return str(local)
 
     def _load(self, key: tuple[Any, ...], make: Any) -> Any:
-        if key not in _LOADED.models:
+        if key not in _LOADED:
             start = time.perf_counter()
-            _LOADED.models[key] = make()
+            _LOADED[key] = make()
             self.load_seconds += time.perf_counter() - start
-        return _LOADED.models[key]
+        return _LOADED[key]
 
     def detector(self, kind: str, given: str | None) -> Any:
         from densepeds.detect import make_detector
