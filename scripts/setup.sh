@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Creates .venv, builds the manylinux wheel (Rust extension included, scripts/build-wheel.sh) and
-# installs it with the dev and eval extras. Prints each step as it goes.
+# installs it with the dev, eval and ray extras. Prints each step as it goes.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-python3}
@@ -17,9 +17,9 @@ fi
 step "upgrading pip"
 python -m pip install -q --upgrade pip
 WHEEL=$(./scripts/build-wheel.sh target/wheels)
-step "installing $(basename "$WHEEL") with the dev and eval extras (numpy, onnxruntime, OpenCV, ...)"
+step "installing $(basename "$WHEEL") with the dev, eval and ray extras (numpy, onnxruntime, OpenCV, Ray, ...)"
 python -m pip install -q --force-reinstall --no-deps "$WHEEL"
-python -m pip install -q "$WHEEL[dev,eval]"
+python -m pip install -q "$WHEEL[dev,eval,ray]"
 # trackeval without its declared dependencies: they add opencv-python (a second cv2 beside
 # opencv-python-headless), matplotlib and pillow, none of which MOTChallenge scoring uses.
 step "installing trackeval (without its dependencies)"

@@ -1,4 +1,4 @@
-"""Command line: ``python -m densepeds run|eval|ablate|scene|models``.
+"""Command line: ``python -m densepeds run|eval|ablate|scene|models|batch``.
 
 User mistakes (missing files, bad option values, unreadable video, malformed det files, model
 mismatches) print one line to stderr and exit 2; there is no traceback for them.
@@ -20,7 +20,7 @@ from densepeds.pipeline import DEFAULT_FEATURES, DETECTORS, FEATURES, MOTIONS
 from densepeds.presets import DEFAULT_PRESET, PRESETS
 
 EXIT_USAGE = 2
-COMMANDS = ("run", "eval", "ablate", "scene", "models")
+COMMANDS = ("run", "eval", "ablate", "scene", "models", "batch")
 FORMATS = ("md", "csv", "json")
 FORMAT_HELP = "output format: md (Markdown table), csv, or json (every metric, full precision)"
 PARAM_HELP = (
@@ -246,6 +246,10 @@ def build_parser() -> argparse.ArgumentParser:
     sc.add_argument("--no-images", action="store_true", help="only seqinfo, gt and det")
 
     _add_models_parser(sub)
+
+    from densepeds.batch import add_parser as add_batch_parser
+
+    add_batch_parser(sub)
     return parser
 
 
@@ -383,13 +387,27 @@ def _speed(times: Any) -> str:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from densepeds.motio import read_detections
-    from densepeds.pipeline import Pipeline, default_features
-    from densepeds.video import SequenceSource, open_source, parse_frame_range
+    from densepeds.video import parse_frame_range
 
     parse_frame_range(args.frames)  # a bad range fails before any work
     if args.input is None:
         return _run_scene(args)
+    src, pipe, dets, out = open_run(args)
+    frames, n_ids = _track_source(args, pipe, src, out, dets)
+    print(_summary(src.name, frames, n_ids, out, pipe, args.video))
+    return 0
+
+
+def open_run(args: argparse.Namespace, models: Any = None) -> tuple[Any, Any, Any, Path]:
+    """``run``'s set-up for one INPUT: (frame source, pipeline, det-file detections, tracks path).
+
+    ``models`` (``densepeds.batch``): an object whose ``detector(kind, path)`` and ``reid(path)``
+    give loaded models, shared by the inputs of a batch; by default the pipeline loads its own.
+    """
+    from densepeds.motio import read_detections
+    from densepeds.pipeline import Pipeline, default_features
+    from densepeds.video import SequenceSource, open_source
+
     src = open_source(args.input)
     has_images = not isinstance(src, SequenceSource) or src.has_images
     has_own_dets = isinstance(src, SequenceSource) and src.det_path is not None
@@ -405,9 +423,16 @@ def _cmd_run(args: argparse.Namespace) -> int:
         )
     # Read the det file and load the models before tracking, so that mistakes surface at once.
     dets = read_detections(args.detections) if args.detections else None
+    detector_spec: Any = detector
+    reid_spec: Any = args.reid_model
+    if models is not None:
+        if detector is not None and dets is None:
+            detector_spec = models.detector(detector, args.detector_model)
+        if features != "none":
+            reid_spec = models.reid(args.reid_model)
     pipe = Pipeline(
-        detector,
-        reid=args.reid_model,
+        detector_spec,
+        reid=reid_spec,
         motion=args.motion,
         features=features,
         detector_model=args.detector_model,
@@ -419,9 +444,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if features != "none":
         pipe.reid()
     out = args.out or Path("out") / f"{src.name}.txt"
-    frames, n_ids = _track_source(args, pipe, src, out, dets)
-    print(_summary(src.name, frames, n_ids, out, pipe, args.video))
-    return 0
+    return src, pipe, dets, out
 
 
 def _run_scene(args: argparse.Namespace) -> int:
@@ -539,12 +562,15 @@ def _cmd_scene(args: argparse.Namespace) -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     args_list = _with_command(list(sys.argv[1:] if argv is None else argv))
     args = build_parser().parse_args(args_list)
+    from densepeds.batch import cmd_batch
+
     handlers = {
         "run": _cmd_run,
         "eval": _cmd_eval,
         "ablate": _cmd_ablate,
         "scene": _cmd_scene,
         "models": _cmd_models,
+        "batch": cmd_batch,
     }
     try:
         return handlers[args.command](args)

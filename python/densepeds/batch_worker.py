@@ -1,0 +1,203 @@
+"""One batch job, as a worker runs it: ``densepeds run``'s own code on one input, with models
+that reach each node once and stay loaded in the worker for its next inputs.
+
+The job builds the ``run`` command's options for its input and calls the same functions as
+``densepeds run`` (``cli.open_run`` then ``cli._track_source``), so its tracks are those of
+``densepeds run INPUT --out NAME.txt`` with the same options. Only the thread counts differ:
+onnxruntime, OpenCV and the motion step use the worker's CPU share, which leaves the results
+unchanged.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import resource
+import socket
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from densepeds.batch_plan import Job, JobRecord, Settings, new_record, write_record
+from densepeds.batch_plan import remove_partial_outputs as _remove_partial_outputs
+from densepeds.errors import DensePedsError
+
+DETECTOR_ROLE = "detector"
+REID_ROLE = "reid"
+
+
+@dataclass(frozen=True)
+class ShippedModel:
+    """A model file resolved by the driver: its contents travel once per node.
+
+    ``ref`` holds the Ray object reference of the file's bytes (in a list, so that Ray hands it
+    over unresolved and a node that has the file already fetches nothing); None uses ``path``.
+    """
+
+    name: str
+    sha256: str
+    size: int
+    path: str
+    ref: list[Any] | None = None
+
+
+# Models loaded in this worker process, kept for its next inputs.
+_LOADED: dict[tuple[Any, ...], Any] = {}
+
+
+def node_cache_dir() -> Path:
+    """Where shipped models are kept on this node: one folder per Ray node in the temporary
+    folder (a local Ray's is removed when the batch ends)."""
+    node = "local"
+    try:
+        import ray
+
+        if ray.is_initialized():
+            node = ray.get_runtime_context().get_node_id()[:16]
+    except ImportError:
+        pass
+    return Path(tempfile.gettempdir()) / f"densepeds-batch-models-{os.getuid()}" / node
+
+
+class WorkerModels:
+    """The ``models`` argument of ``cli.open_run``: loads each model once per worker process,
+    with ``threads`` onnxruntime threads, from the node's copy of the driver's file."""
+
+    def __init__(self, shipped: dict[str, ShippedModel], threads: int | None) -> None:
+        self.shipped = shipped
+        self.threads = threads
+        self.load_seconds = 0.0
+        self.fetched: list[str] = []
+
+    def _file(self, role: str, given: str | None) -> str | None:
+        model = self.shipped.get(role)
+        if model is None:
+            return given  # not resolved by the driver: looked up here as `run` would
+        if model.ref is None:
+            return model.path
+        local = node_cache_dir() / f"{model.sha256[:16]}-{model.name}"
+        local.parent.mkdir(parents=True, exist_ok=True)
+        # One worker of the node copies the file; the others wait for it (a lock per model).
+        with open(local.with_name(f".{local.name}.lock"), "w") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            if not (local.is_file() and local.stat().st_size == model.size):
+                import ray
+
+                data = ray.get(model.ref[0])
+                fd, tmp = tempfile.mkstemp(dir=local.parent, prefix=f".{local.name}.")
+                with os.fdopen(fd, "wb") as fh:
+                    fh.write(data)
+                os.replace(tmp, local)
+                self.fetched.append(model.name)
+        return str(local)
+
+    def _load(self, key: tuple[Any, ...], make: Any) -> Any:
+        if key not in _LOADED:
+            start = time.perf_counter()
+            _LOADED[key] = make()
+            self.load_seconds += time.perf_counter() - start
+        return _LOADED[key]
+
+    def detector(self, kind: str, given: str | None) -> Any:
+        from densepeds.detect import make_detector
+
+        path = self._file(DETECTOR_ROLE, given)
+        return self._load(
+            (DETECTOR_ROLE, kind, path, self.threads),
+            lambda: make_detector(kind, path, threads=self.threads),
+        )
+
+    def reid(self, given: str | None) -> Any:
+        from densepeds.reid import ReID
+
+        path = self._file(REID_ROLE, given)
+        model = self._load(
+            (REID_ROLE, path, self.threads), lambda: ReID(path, threads=self.threads)
+        )
+        model.reset()  # nothing carries over from the previous input
+        return model
+
+
+def run_args(settings: Settings, job: Job, threads: int | None) -> Any:
+    """The options ``densepeds run INPUT`` gets for this job (parsed by the run command's own
+    parser, so every default is the command's)."""
+    from densepeds.cli import build_parser
+
+    args = build_parser().parse_args(["run", str(job.input)])
+    args.detector = settings.detector
+    args.detector_model = settings.detector_model
+    args.reid_model = settings.reid_model
+    args.motion = settings.motion
+    args.features = settings.features
+    args.frames = settings.frames
+    args.param = list(settings.params)
+    if threads is not None and "threads" not in dict(settings.params):
+        args.param.append(("threads", threads))  # the motion step's threads: same results
+    args.out = job.tracks
+    args.video = job.video_file
+    args.quiet = True
+    return args
+
+
+def run_job(
+    job: Job,
+    settings: Settings,
+    settings_hash: str,
+    shipped: dict[str, ShippedModel],
+    threads: int | None = None,
+) -> JobRecord:
+    """Track one input into its outputs and write its record; a bad input gives a ``failed``
+    record with the one-line error (never an exception)."""
+    from densepeds.cli import _one_line, _track_source, open_run
+
+    start = time.perf_counter()
+    cpu_start = _cpu_seconds()
+    record = new_record(job, settings_hash, "running")
+    record.node = _node_name()
+    record.pid = os.getpid()
+    job.out_dir.mkdir(parents=True, exist_ok=True)
+    _remove_partial_outputs(job)
+    write_record(job, record)
+    if threads is not None:
+        import cv2
+
+        cv2.setNumThreads(threads)
+    models = WorkerModels(shipped, threads)
+    try:
+        args = run_args(settings, job, threads)
+        src, pipe, dets, out = open_run(args, models)
+        record.open_seconds = time.perf_counter() - start
+        record.frames, record.tracks = _track_source(args, pipe, src, out, dets)
+        record.fps = pipe.times.fps
+        record.status = "done"
+        record.tracks_file = job.tracks.name
+        record.video_file = job.video_file.name if job.video_file is not None else None
+    except DensePedsError as err:
+        record.status, record.error = "failed", _one_line(err)
+    except Exception as err:  # a bug or an unexpected library error: this input fails alone
+        record.status, record.error = "failed", f"{type(err).__name__}: {_one_line(err)}"
+    record.load_seconds = models.load_seconds
+    record.fetched_models = models.fetched
+    record.seconds = time.perf_counter() - start
+    record.cpu_seconds = _cpu_seconds() - cpu_start
+    record.max_rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    write_record(job, record)
+    return record
+
+
+def _node_name() -> str:
+    try:
+        import ray
+
+        if ray.is_initialized():
+            return ray.get_runtime_context().get_node_id()[:12]
+    except ImportError:
+        pass
+    return socket.gethostname()
+
+
+def _cpu_seconds() -> float:
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_utime + usage.ru_stime
