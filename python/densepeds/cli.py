@@ -17,7 +17,7 @@ from typing import Any, NoReturn
 
 from densepeds.errors import DensePedsError, ParameterError
 from densepeds.pipeline import DEFAULT_FEATURES, DETECTORS, FEATURES, MOTIONS
-from densepeds.presets import DEFAULT_PRESET, PRESETS
+from densepeds.presets import DEFAULT_PRESET, PRESETS, preset_for
 
 EXIT_USAGE = 2
 COMMANDS = ("run", "eval", "ablate", "scene", "models", "batch")
@@ -430,13 +430,15 @@ def open_run(args: argparse.Namespace, models: Any = None) -> tuple[Any, Any, An
             detector_spec = models.detector(detector, args.detector_model)
         if features != "none":
             reid_spec = models.reid(args.reid_model)
+    # The preset follows the detector asked for, also when a batch hands over a loaded one.
+    preset = args.preset if args.preset is not None else preset_for(detector).name
     pipe = Pipeline(
         detector_spec,
         reid=reid_spec,
         motion=args.motion,
         features=features,
         detector_model=args.detector_model,
-        preset=args.preset,
+        preset=preset,
         **dict(args.param),
     )
     if detector is not None and dets is None:
