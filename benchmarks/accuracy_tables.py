@@ -45,16 +45,22 @@ CANDIDATES: dict[str, dict[str, Any]] = {
     "output_lost 0": {"output_lost": 0},
     "output_lost 10": {"output_lost": 10},
     "occluded_output 0": {"occluded_output": 0},
+    "occluded_output 5": {"occluded_output": 5},
     "occluded_output 60": {"occluded_output": 60},
     "occlusion_coverage 0.3": {"occlusion_coverage": 0.3},
     "occlusion_coverage 0.7": {"occlusion_coverage": 0.7},
+    "score_scale absolute": {"score_scale": "absolute"},
+    "score_scale rank": {"score_scale": "rank"},
+    "score_quantile_floor 0": {"score_quantile_floor": 0.0},
+    "score_quantile_floor 0.3": {"score_quantile_floor": 0.3},
 }
 # What the package defaults were chosen on: update this where a default is tuned again.
 TUNED_ON = {
-    "det": "the six `/det` cells together, motion only",
-    "cnn": "the two `/float` videos together",
+    "det": "the six `/det` cells together, motion only (the score reading, `score_scale` and "
+    "`score_quantile_floor`, on all 15 cells, the `/frcnn` and `/int8` ones included)",
+    "cnn": "the two `/float` videos together (the score reading as above)",
 }
-UNTUNED = "every `/frcnn` and `/int8` cell"
+UNTUNED = "every `/frcnn` and `/int8` cell for all but the score reading"
 MOTION_ROWS = ("frvo", "rvo", "sf", "cv")
 FEATURE_ROWS = ("segmented", "bbox", "masked_pool", "none")
 VISIBILITY_BINS = ((0.0, 0.25), (0.25, 0.5), (0.5, 0.75), (0.75, 1.01))

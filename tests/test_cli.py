@@ -30,10 +30,6 @@ def _one_line_error(rc: int, err: str, *needles: str) -> None:
         assert needle in lines[0], lines[0]
 
 
-def _needs_tracker() -> None:
-    pytest.importorskip("densepeds.tracking", reason="needs densepeds.tracking (engineer assoc)")
-
-
 # --- mistakes: one line on stderr, exit 2 ------------------------------------------------------
 
 
@@ -77,7 +73,6 @@ def test_features_need_frames(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_model_mismatch(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
-    _needs_tracker()
     video = shared_path("data", "PETS09-S2L1-dev", "vtest.avi")
     fake = tmp_path / "reid.onnx"
     fake.write_bytes(b"not an onnx model")
@@ -108,7 +103,6 @@ def test_python_m_prints_no_traceback(tmp_path: Path) -> None:
 
 def test_run_and_eval_from_det_file(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     """Motion only from TUD-Stadtmitte's det.txt, then `eval` on the written file."""
-    _needs_tracker()
     seq = shared_path("data", "TUD-Stadtmitte")
     out = tmp_path / "tud.txt"
     rc, stdout, _ = _run(capsys, "run", str(seq), "--out", str(out), "--quiet")
@@ -134,7 +128,6 @@ def test_pets_video_with_real_models(capsys: pytest.CaptureFixture[str], tmp_pat
     MOTA is not asserted: it is dominated by the detector's false positives (people outside
     the annotated area, duplicate boxes), which are the perception layer's to tune. The floors
     check that tracks land on the annotated people and keep their identities."""
-    _needs_tracker()
     seq = shared_path("data", "PETS09-S2L1-dev")
     shared_path("models", "yolov8n-seg-320-int8.onnx")
     shared_path("models", "osnet_x0_25_msmt17.onnx")
@@ -176,7 +169,6 @@ def test_pets_video_with_real_models(capsys: pytest.CaptureFixture[str], tmp_pat
 
 def test_builtin_scene(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     """`densepeds run` with no input: the scene, its metrics, tracks and an annotated video."""
-    _needs_tracker()
     out, video = tmp_path / "scene.txt", tmp_path / "scene.avi"
     rc, stdout, _ = _run(
         capsys, "run", "--scene-frames", "60", "--out", str(out), "--video", str(video), "-q"
@@ -192,7 +184,6 @@ def test_builtin_scene(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> No
 def test_scene_command_writes_a_sequence_that_run_and_eval_accept(
     capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
-    _needs_tracker()
     rc, stdout, _ = _run(capsys, "scene", str(tmp_path), "--frames", "30", "--no-images")
     assert rc == 0
     seq = tmp_path / "DensePeds-scene-0"
@@ -207,7 +198,6 @@ def test_scene_command_writes_a_sequence_that_run_and_eval_accept(
 
 
 def test_ablate_on_the_scene(capsys: pytest.CaptureFixture[str]) -> None:
-    _needs_tracker()
     rc, stdout, _ = _run(
         capsys, "ablate", "--motion", "cv,frvo", "--features", "segmented,none", "--frames", "1:50"
     )
@@ -295,7 +285,6 @@ def test_eval_help_describes_its_options(capsys: pytest.CaptureFixture[str]) -> 
 
 def test_speed_says_what_was_timed(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     """A det-file run's frames/s is the tracker's, and says so (not the pipeline's speed)."""
-    _needs_tracker()
     seq = shared_path("data", "TUD-Stadtmitte")
     rc, stdout, _ = _run(capsys, "run", str(seq), "--frames", "1:20", "--out", str(tmp_path / "t"))
     assert rc == 0
@@ -327,7 +316,6 @@ def test_eval_frames_scores_a_partial_run(
     """`eval --frames 50:89` on a run of frames 50-89 gives the scores of the same tracks against
     a ground truth holding only those frames (an independent route: frames without gt or tracks
     add nothing to HOTA, CLEAR or IDF1); without --frames, a warning and lower scores."""
-    _needs_tracker()
     from densepeds.evaluate import METRICS, evaluate
 
     seq = shared_path("data", "TUD-Stadtmitte")

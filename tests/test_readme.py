@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import re
 
-import pytest
 from conftest import REPO
 from densepeds.cli import build_parser
 
@@ -17,7 +16,6 @@ def _section(name: str) -> str:
 
 
 def test_python_api_example_runs(tmp_path, monkeypatch, capsys) -> None:  # type: ignore[no-untyped-def]
-    pytest.importorskip("densepeds.tracking", reason="needs densepeds.tracking (engineer assoc)")
     blocks = re.findall(r"```python\n(.*?)```", _section("Python API"), re.S)
     assert len(blocks) == 1
     monkeypatch.chdir(tmp_path)
