@@ -49,7 +49,7 @@ CANDIDATES: dict[str, dict[str, Any]] = {
     "occluded_output 60": {"occluded_output": 60},
     "occlusion_coverage 0.3": {"occlusion_coverage": 0.3},
     "occlusion_coverage 0.7": {"occlusion_coverage": 0.7},
-    "score_scale absolute": {"score_scale": "absolute"},
+    "score_scale range": {"score_scale": "range"},
     "score_scale rank": {"score_scale": "rank"},
     "score_quantile_floor 0": {"score_quantile_floor": 0.0},
     "score_quantile_floor 0.3": {"score_quantile_floor": 0.3},

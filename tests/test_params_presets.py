@@ -66,7 +66,7 @@ def test_pipeline_applies_and_shows_its_preset() -> None:
     # Named explicitly, for detections given by the caller; the caller's values win.
     pipe = Pipeline(None, preset="maskrcnn", det_threshold=0.8, min_height=10)
     assert pipe.params["preset"] == "maskrcnn" and pipe.params["det_threshold"] == 0.8
-    assert pipe.params["new_track_threshold"] == 0.4 and pipe.params["min_height"] == 10
+    assert pipe.params["new_track_threshold"] == 0.7 and pipe.params["min_height"] == 10
     with pytest.raises(ParameterError, match="unknown preset 'nope'"):
         get_preset("nope")
     with pytest.raises(ParameterError, match="unknown preset"):

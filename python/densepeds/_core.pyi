@@ -120,7 +120,7 @@ class Tracker:
         new_track_threshold: float = 0.3,
         second_pass: bool = True,
         low_threshold: float = 0.05,
-        score_scale: str = "range",
+        score_scale: str = "absolute",
         score_window: int = 2000,
         score_quantile_floor: float = 0.15,
         score_warm_up: int = 100,

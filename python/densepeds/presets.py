@@ -16,9 +16,10 @@ Where a detection's score is cut, in order (every cut is ``score >= value`` unle
 3. the tracker: detections in ``[low_threshold, det_threshold)`` only extend tracks (second
    pass), those from ``det_threshold`` up are matched in every stage, and those from
    ``new_track_threshold`` (and ``det_threshold``) up may start a track.
-   The tracker reads these thresholds in its ``score_scale`` (by default ``range``: a place
-   between the lowest score seen, the detector's floor, and the highest, at least 1), so a
-   preset writes a cut tuned on absolute scores as its place above the floor (``_place``).
+   The tracker reads these thresholds in its ``score_scale`` (by default ``absolute``: as
+   given; chosen by leave-one-out over the dev grid, ``benchmarks/results/accuracy-loo.md``),
+   and ``score_quantile_floor`` keeps the lowest-scored recent detections from matching or
+   starting tracks whatever the detector's scale.
 
 ``Preset.check`` asserts that each tracker stage can fire above the floor.
 """
@@ -95,11 +96,6 @@ _CNN_APPEARANCE: dict[str, float | int | bool] = {
 }
 
 
-def _place(score: float, floor: float) -> float:
-    """Where ``score`` lies between a detector's floor and 1 (a threshold in the range scale)."""
-    return round((score - floor) / (1.0 - floor), 4)
-
-
 PRESETS: Mapping[str, Preset] = MappingProxyType(
     {
         p.name: p
@@ -114,18 +110,18 @@ PRESETS: Mapping[str, Preset] = MappingProxyType(
                 "yoloseg",
                 "the tiled YOLOv8n-seg detector with OSNet features, chosen on MOT20-01-dev and "
                 "PETS09-S2L1-dev together (benchmarks/results/realvideo.md)",
-                # The segmenter scores the people of a dense crowd low: boxes from 0.15 extend
-                # tracks (second pass, IoU >= 0.5), from 0.3 are matched, from 0.35 start tracks
-                # (its float copy makes few confident false positives, so births this low are
-                # safe; the 0.6-0.7 of other trackers starts too few). The cuts are placed above
-                # the floor the tracker observes, so a copy whose scores start higher (the int8
-                # graph's start at 0.18) has its cuts moved up with them.
+                # The segmenter scores the people of a dense crowd low: every box it keeps (from
+                # its floor, 0.15) may extend a track (second pass, IoU >= 0.5), boxes from 0.18
+                # are matched and from 0.24 start tracks (its float copy makes few confident false
+                # positives, so births this low are safe; the 0.6-0.7 of other trackers starts
+                # too few); the tracker's quantile floor (score_quantile_floor) still keeps the
+                # lowest-scored boxes of the recent frames from matching or starting tracks.
                 score_floor=0.15,
                 detection=_CNN_DETECTION,
                 tracker={
-                    "low_threshold": _place(0.15, 0.15),
-                    "det_threshold": _place(0.3, 0.15),
-                    "new_track_threshold": _place(0.35, 0.15),
+                    "low_threshold": 0.15,
+                    "det_threshold": 0.18,
+                    "new_track_threshold": 0.24,
                     **_CNN_APPEARANCE,
                 },
             ),
@@ -138,9 +134,9 @@ PRESETS: Mapping[str, Preset] = MappingProxyType(
                 score_floor=0.5,
                 detection=_CNN_DETECTION,
                 tracker={
-                    "low_threshold": _place(0.5, 0.5),
-                    "det_threshold": _place(0.7, 0.5),
-                    "new_track_threshold": _place(0.7, 0.5),
+                    "low_threshold": 0.5,
+                    "det_threshold": 0.7,
+                    "new_track_threshold": 0.7,
                     **_CNN_APPEARANCE,
                 },
             ),

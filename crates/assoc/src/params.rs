@@ -411,7 +411,7 @@ tracker_params! {
             "ByteTrack-style pass: unmatched tracks vs detections in [low_threshold, det_threshold)";
         low_threshold: f64 = 0.05, ANY,
             "lowest score used by the second pass";
-        score_scale: ScoreScale = ScoreScale::Range, Range::Choice(SCORE_SCALE_NAMES),
+        score_scale: ScoreScale = ScoreScale::Absolute, Range::Choice(SCORE_SCALE_NAMES),
             "how the score thresholds are read: absolute (as given), range (a place between the lowest score seen and the highest, at least 1), rank (a quantile of the last score_window scores)";
         score_window: usize = 2000, ints(1, USIZE_MAX),
             "scores (the last ones seen) whose quantiles the rank score scale reads thresholds as";

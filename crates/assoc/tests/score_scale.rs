@@ -245,11 +245,13 @@ fn range_scale_reads_a_floor_cut_detector_from_its_floor() {
 }
 
 #[test]
-fn pure_tracker_reads_scores_as_given_and_default_reads_the_range() {
+fn pure_tracker_reads_scores_as_given_and_the_range_scale_reads_the_range() {
     assert_eq!(TrackerParams::pure().score_scale, ScoreScale::Absolute);
     assert_eq!(TrackerParams::pure().score_quantile_floor, 0.0);
-    assert_eq!(TrackerParams::default().score_scale, ScoreScale::Range);
-    let p = TrackerParams::default();
+    let p = TrackerParams {
+        score_scale: ScoreScale::Range,
+        ..TrackerParams::default()
+    };
     let mut s = ScoreScaler::new();
     s.observe(&[2.0, 4.0], p.score_window);
     let q = s.scaled(&p, &[]);
