@@ -1,0 +1,55 @@
+#!/usr/bin/env bash
+# Runs each cargo-fuzz target (fuzz/fuzz_targets) for SECONDS, one after another, niced, and
+# writes the executions and crashes of each to benchmarks/results/fuzz.md.
+#   scripts/fuzz.sh SECONDS [TARGET...]      (default: every target)
+# Needs the nightly toolchain and cargo-fuzz (`cargo install cargo-fuzz`). Exit 1 if any target
+# crashed; the crashing inputs are kept in fuzz/artifacts/TARGET/.
+set -euo pipefail
+secs=${1:?usage: scripts/fuzz.sh SECONDS [TARGET...]}
+shift
+root=$(cd "$(dirname "$0")/.." && pwd)
+cd "$root/fuzz"
+targets=("$@")
+if [ ${#targets[@]} -eq 0 ]; then
+    mapfile -t targets < <(cargo +nightly fuzz list)
+fi
+out="$root/benchmarks/results/fuzz.md"
+logs="$root/fuzz/logs"
+mkdir -p "$logs" "$(dirname "$out")"
+nice -n 5 cargo +nightly fuzz build --release
+rows=()
+failed=0
+for t in "${targets[@]}"; do
+    log="$logs/$t.log"
+    mkdir -p "corpus/$t" "artifacts/$t"
+    before=$(find "artifacts/$t" -type f | wc -l)
+    start=$(date +%s)
+    set +e
+    nice -n 5 cargo +nightly fuzz run --release "$t" "corpus/$t" -- \
+        -max_total_time="$secs" -timeout=10 -rss_limit_mb=2048 -print_final_stats=1 \
+        >"$log" 2>&1
+    rc=$?
+    set -e
+    took=$(( $(date +%s) - start ))
+    execs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | tail -1 | grep -o '[0-9]*$' || true)
+    after=$(find "artifacts/$t" -type f | wc -l)
+    crashes=$(( after - before ))
+    if [ "$rc" -ne 0 ] && [ "$crashes" -eq 0 ]; then crashes="exit $rc"; fi
+    if [ "$rc" -ne 0 ] || [ "$after" -ne "$before" ]; then failed=1; fi
+    corpus=$(find "corpus/$t" -type f | wc -l)
+    echo "$t: ${execs:-?} executions in ${took}s, crashes: $crashes, corpus $corpus (log $log)"
+    rows+=("| \`$t\` | ${took} | ${execs:-?} | $crashes | $corpus |")
+done
+{
+    echo "# Fuzzing"
+    echo
+    echo "\`scripts/fuzz.sh $secs\` on $(date -u +%Y-%m-%d) ($(nproc) cores, load: $(cut -d' ' -f1-3 /proc/loadavg);"
+    echo "$(cargo +nightly --version)). Each target ran alone, niced, for the time given; the"
+    echo "corpus starts empty on a fresh clone. Targets are described in \`fuzz/fuzz_targets/\`."
+    echo
+    echo "| target | seconds | executions | crashes | corpus files |"
+    echo "|---|---:|---:|---:|---:|"
+    printf '%s\n' "${rows[@]}"
+} >"$out"
+echo "wrote $out"
+exit $failed
