@@ -92,10 +92,13 @@ fn lp1<const DIRECTION: bool>(
         let denom = cross(line.dir, other.dir);
         let numer = cross(other.dir, line.point - other.point);
         if denom.abs() <= PARALLEL_EPS {
-            if numer < 0.0 {
-                return false; // parallel, and this line lies wholly outside the other
+            if numer >= 0.0 {
+                continue; // parallel, and this line lies inside the other
             }
-            continue;
+            if denom == 0.0 || numer < -denom.abs() * root {
+                return false; // this line's segment in the disc lies wholly outside the other
+            }
+            // Nearly parallel lines crossing inside the disc: the other still bounds t.
         }
         let t = numer / denom;
         // Selects rather than f64::min/max (which also test lo and hi for NaN): the same
