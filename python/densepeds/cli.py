@@ -356,7 +356,7 @@ def _stop_after_detections(
     (a ``seqLength`` far beyond the detections would otherwise run for hours); says so."""
     from densepeds.video import FrameRange
 
-    if src.length is None:
+    if src.length is None or rng.first > src.length:
         return rng
     params = getattr(pipe.tracker, "params", {})
     coast = int(params.get("output_lost", 0)) if isinstance(params, dict) else 0
