@@ -112,9 +112,7 @@ def _unwritable_dir(tmp_path: Path) -> Path:
 def test_finding1_video_on_a_full_disk_fails_and_leaves_nothing(tmp_path: Path) -> None:
     seq = _sequence(tmp_path, frames=40)
     out, video = tmp_path / "out" / "t.txt", tmp_path / "out" / "v.mp4"
-    proc = _cli(
-        "run", str(seq), "--out", str(out), "--video", str(video), "-q", limit=48 * 1024
-    )
+    proc = _cli("run", str(seq), "--out", str(out), "--video", str(video), "-q", limit=48 * 1024)
     line = _one_line(proc.returncode, proc.stderr, str(video), "could not be written")
     assert "40 frames" in line
     assert not video.exists() and not out.exists()
@@ -341,7 +339,7 @@ def test_finding4_ctrl_c_early_is_one_line(tmp_path: Path, delay: float) -> None
     assert not [p for p in tmp_path.rglob("*") if p.name.startswith(".")]
 
 
-# --- finding 5: a one-line edit runs for hours -----------------------------------------------------
+# --- finding 5: a one-line edit runs for hours ----------------------------------------------
 
 
 def test_finding5_seqlength_far_past_the_detections(

@@ -98,12 +98,11 @@ def test_video_codec_is_reported_and_is_what_the_file_holds(tmp_path: Path) -> N
         assert codec == {"avc1": "h264", "mp4v": "mpeg4"}[writer.codec]
 
 
-def test_cli_says_which_codec(
-    capsys: pytest.CaptureFixture[str], tmp_path: Path
-) -> None:
+def test_cli_says_which_codec(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     seq = make_scene(seed=1, frames=5).write(tmp_path / "seqs")
     video = tmp_path / "v.mp4"
-    rc, _, err = _run(capsys, "run", str(seq), "--out", str(tmp_path / "t.txt"), "--video", str(video))
+    out = tmp_path / "t.txt"
+    rc, _, err = _run(capsys, "run", str(seq), "--out", str(out), "--video", str(video))
     assert rc == 0
     assert "H.264" in err or "MPEG-4 Part 2" in err, err
 
@@ -123,7 +122,7 @@ def _check_layout(boxes: np.ndarray, ids: list[int], size: tuple[int, int]) -> N
     assert _overlaps([*rects, counter]) == 0
     for (x1, y1, x2, y2), (w, h) in zip(rects, sizes, strict=True):
         assert (x2 - x1, y2 - y1) == (w, h)
-        assert 0 <= x1 and x2 <= size[0] and 0 <= y1 and y2 <= size[1]
+        assert x1 >= 0 and y1 >= 0 and x2 <= size[0] and y2 <= size[1]
 
 
 def test_labels_do_not_overlap_in_a_dense_crowd() -> None:

@@ -42,7 +42,8 @@ def _mot_text(draw: st.DrawFn) -> str:
     rows = []
     for _ in range(draw(st.integers(0, 12))):
         if draw(st.integers(0, 9)) == 0:
-            rows.append(draw(st.sampled_from(["", "   ", "#x", ",,,", "1,2,3,4,5,6,7,8,9,10,11,12"])))
+            odd = ["", "   ", "#x", ",,,", "1,2,3,4,5,6,7,8,9,10,11,12"]
+            rows.append(draw(st.sampled_from(odd)))
             continue
         k = ncols if draw(st.integers(0, 5)) else draw(st.integers(1, 11))
         frame = draw(st.integers(-2, 50).map(str) | _NUMBER)
