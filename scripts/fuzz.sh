@@ -38,18 +38,30 @@ for t in "${targets[@]}"; do
     if [ "$rc" -ne 0 ] || [ "$after" -ne "$before" ]; then failed=1; fi
     corpus=$(find "corpus/$t" -type f | wc -l)
     echo "$t: ${execs:-?} executions in ${took}s, crashes: $crashes, corpus $corpus (log $log)"
-    rows+=("| \`$t\` | ${took} | ${execs:-?} | $crashes | $corpus |")
+    commit=$(git -C "$root" rev-parse --short HEAD 2>/dev/null || echo "?")
+    load=$(cut -d' ' -f1 /proc/loadavg)
+    rows+=("| \`$t\` | $(date -u '+%Y-%m-%d %H:%M') | $commit | ${took} | ${execs:-?} | $crashes | $corpus | $load |")
 done
+# Rows of targets not run this time are kept from the previous file.
+kept=()
+if [ -f "$out" ]; then
+    while IFS= read -r line; do
+        name=$(sed -n 's/^| `\([^`]*\)`.*/\1/p' <<<"$line")
+        [ -n "$name" ] || continue
+        [[ " ${targets[*]} " == *" $name "* ]] || kept+=("$line")
+    done <"$out"
+fi
 {
     echo "# Fuzzing"
     echo
-    echo "\`scripts/fuzz.sh $secs\` on $(date -u +%Y-%m-%d) ($(nproc) cores, load: $(cut -d' ' -f1-3 /proc/loadavg);"
-    echo "$(cargo +nightly --version)). Each target ran alone, niced, for the time given; the"
-    echo "corpus starts empty on a fresh clone. Targets are described in \`fuzz/fuzz_targets/\`."
+    echo "Written by \`scripts/fuzz.sh SECONDS [TARGET...]\` ($(nproc) cores; $(cargo +nightly --version))."
+    echo "Each target ran alone, niced, for the seconds given, from the corpus in \`fuzz/corpus/\`"
+    echo "(empty on a fresh clone); the commit is the one fuzzed (with any uncommitted changes); load"
+    echo "is the 1-minute load average at the end. What each target checks: \`fuzz/README.md\`."
     echo
-    echo "| target | seconds | executions | crashes | corpus files |"
-    echo "|---|---:|---:|---:|---:|"
-    printf '%s\n' "${rows[@]}"
+    echo "| target | finished (UTC) | commit | seconds | executions | crashes | corpus files | load |"
+    echo "|---|---|---|---:|---:|---:|---:|---:|"
+    printf '%s\n' "${kept[@]}" "${rows[@]}" | sort
 } >"$out"
 echo "wrote $out"
 exit $failed

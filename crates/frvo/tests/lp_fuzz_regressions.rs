@@ -59,3 +59,31 @@ fn nearly_parallel_constraints_crossing_inside_the_disc() {
     let sol = solve(&[a, b], 2.0, pref, &mut Vec::new());
     assert!(sol.feasible && sol.velocity == pref, "{sol:?}");
 }
+
+/// Two nearly antiparallel lines (directions 1.7e-12 off) 84 px apart, far from the origin:
+/// no velocity satisfies both, and the min-max answer violates each by the same amount (half
+/// the gap). Their bisector was once placed through their crossing point, about 5e13 away,
+/// where rounding moved it by 0.002 px: one line was then violated by more than the reported
+/// level.
+#[test]
+fn nearly_antiparallel_lines_split_the_violation_evenly() {
+    let lines = [
+        Line {
+            point: V2::new(-1.0660607428338825e-146, 1.2553953967496001e-305),
+            dir: unit(5.256633473058935e83, 5.256633473076691e83),
+        },
+        Line {
+            point: V2::new(-8493.176470555978, -8577.50588235294),
+            dir: unit(-8577.50588235294, -8577.50588235294),
+        },
+    ];
+    let pref = V2::new(-8577.50588235294, -8577.50588235294);
+    let sol = solve(&lines, 8577.50588235294, pref, &mut Vec::new());
+    assert!(!sol.feasible, "{sol:?}");
+    let (a, b) = (
+        lines[0].violation(sol.velocity),
+        lines[1].violation(sol.velocity),
+    );
+    assert!((a - b).abs() < 1e-8, "violations {a} and {b}: {sol:?}");
+    assert!(a.max(b) <= sol.violation + 1e-8, "{sol:?}");
+}
