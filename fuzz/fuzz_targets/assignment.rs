@@ -78,7 +78,11 @@ fuzz_target!(|input: Input| {
     };
     let Ok(pairs) = res else {
         if !bad_value && small {
-            assert!(optimum().is_none(), "reported infeasible, but {:?} exists", optimum());
+            assert!(
+                optimum().is_none(),
+                "reported infeasible, but {:?} exists",
+                optimum()
+            );
         }
         return;
     };
@@ -88,7 +92,10 @@ fuzz_target!(|input: Input| {
     let mut cols = vec![false; m];
     let mut total = 0.0;
     for &(i, j) in &pairs {
-        assert!(i < n && j < m && !rows[i] && !cols[j], "not an assignment: {pairs:?}");
+        assert!(
+            i < n && j < m && !rows[i] && !cols[j],
+            "not an assignment: {pairs:?}"
+        );
         rows[i] = true;
         cols[j] = true;
         let x = cost[i * m + j];
@@ -100,7 +107,10 @@ fuzz_target!(|input: Input| {
         return;
     }
     let best = optimum().expect("solver found an assignment that brute force did not");
-    let scale = cost.iter().filter(|c| c.is_finite()).fold(1.0f64, |a, c| a.max(c.abs()));
+    let scale = cost
+        .iter()
+        .filter(|c| c.is_finite())
+        .fold(1.0f64, |a, c| a.max(c.abs()));
     assert!(
         (total - best).abs() <= 1e-9 * scale * (n.min(m) as f64 + 1.0),
         "total {total} != optimum {best} for {n}x{m} {cost:?}"

@@ -60,8 +60,7 @@ fuzz_target!(|input: Input| {
     let mut lines = Vec::with_capacity(raw.len());
     for l in &raw {
         let norm = l.dir.norm();
-        if !(in_contract(l.point.x) && in_contract(l.point.y) && norm.is_finite() && norm > 1e-3)
-        {
+        if !(in_contract(l.point.x) && in_contract(l.point.y) && norm.is_finite() && norm > 1e-3) {
             return;
         }
         lines.push(Line {
@@ -77,10 +76,20 @@ fuzz_target!(|input: Input| {
         .map(|l| l.point.norm())
         .fold(speed.max(pref.norm()).max(1.0), f64::max);
     let tol = 1e-9 * scale;
-    assert!(v.norm() <= speed + tol, "speed {} > {speed}: {sol:?}", v.norm());
-    let worst = lines.iter().map(|l| l.violation(v)).fold(f64::NEG_INFINITY, f64::max);
+    assert!(
+        v.norm() <= speed + tol,
+        "speed {} > {speed}: {sol:?}",
+        v.norm()
+    );
+    let worst = lines
+        .iter()
+        .map(|l| l.violation(v))
+        .fold(f64::NEG_INFINITY, f64::max);
     if sol.feasible {
-        assert!(worst <= tol, "feasible but a line is violated by {worst}: {sol:?}");
+        assert!(
+            worst <= tol,
+            "feasible but a line is violated by {worst}: {sol:?}"
+        );
         assert_eq!(sol.violation, 0.0);
     } else {
         assert!(sol.violation.is_finite() && sol.violation > -tol, "{sol:?}");
@@ -90,15 +99,21 @@ fuzz_target!(|input: Input| {
             sol.violation
         );
     }
-    let pref_ok =
-        pref.norm() <= speed && lines.iter().all(|l| l.violation(pref) <= 0.0);
+    let pref_ok = pref.norm() <= speed && lines.iter().all(|l| l.violation(pref) <= 0.0);
     if pref_ok {
         assert!(sol.feasible, "the preferred velocity is allowed: {sol:?}");
-        assert!((v - pref).norm() <= tol, "allowed preferred velocity moved: {sol:?}");
+        assert!(
+            (v - pref).norm() <= tol,
+            "allowed preferred velocity moved: {sol:?}"
+        );
     }
     let again = solve(&lines, speed, pref, &mut scratch);
     assert_eq!(
-        (again.velocity.x.to_bits(), again.velocity.y.to_bits(), again.feasible),
+        (
+            again.velocity.x.to_bits(),
+            again.velocity.y.to_bits(),
+            again.feasible
+        ),
         (v.x.to_bits(), v.y.to_bits(), sol.feasible),
         "not repeatable with a used scratch buffer"
     );

@@ -38,7 +38,13 @@ struct Input {
 const BOUND: f64 = 1e9;
 
 fn tidy(b: [f64; 4]) -> [f64; 4] {
-    let f = |x: f64, lo: f64, hi: f64| if x.is_finite() { lo + x.abs() % (hi - lo) } else { lo };
+    let f = |x: f64, lo: f64, hi: f64| {
+        if x.is_finite() {
+            lo + x.abs() % (hi - lo)
+        } else {
+            lo
+        }
+    };
     let (cx, cy) = (f(b[0], 0.0, 2000.0), f(b[1], 0.0, 1200.0));
     let (w, h) = (f(b[2], 0.0, 200.0), f(b[3], 0.0, 400.0));
     [cx - w / 2.0, cy - h / 2.0, cx + w / 2.0, cy + h / 2.0]
@@ -69,7 +75,9 @@ fuzz_target!(|input: Input| {
         let emb: Vec<f32> = if frame.emb.is_empty() {
             Vec::new()
         } else {
-            (0..dets.len() * dim).map(|k| frame.emb[k % frame.emb.len()]).collect()
+            (0..dets.len() * dim)
+                .map(|k| frame.emb[k % frame.emb.len()])
+                .collect()
         };
         let embeddings = (!frame.emb.is_empty()).then_some(Embeddings { data: &emb, dim });
         let before = tracker.frame_count();
