@@ -16,6 +16,7 @@ fi
 out="$root/benchmarks/results/fuzz.md"
 logs="$root/fuzz/logs"
 mkdir -p "$logs" "$(dirname "$out")"
+commit=$(git -C "$root" rev-parse --short HEAD 2>/dev/null || echo "?")
 nice -n 5 cargo +nightly fuzz build --release
 rows=()
 failed=0
@@ -38,7 +39,6 @@ for t in "${targets[@]}"; do
     if [ "$rc" -ne 0 ] || [ "$after" -ne "$before" ]; then failed=1; fi
     corpus=$(find "corpus/$t" -type f | wc -l)
     echo "$t: ${execs:-?} executions in ${took}s, crashes: $crashes, corpus $corpus (log $log)"
-    commit=$(git -C "$root" rev-parse --short HEAD 2>/dev/null || echo "?")
     load=$(cut -d' ' -f1 /proc/loadavg)
     rows+=("| \`$t\` | $(date -u '+%Y-%m-%d %H:%M') | $commit | ${took} | ${execs:-?} | $crashes | $corpus | $load |")
 done

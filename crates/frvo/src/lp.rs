@@ -96,8 +96,10 @@ fn lp1<const DIRECTION: bool>(
         let denom = cross(line.dir, other.dir);
         let numer = cross(other.dir, line.point - other.point);
         if denom.abs() <= PARALLEL_EPS {
-            if numer >= 0.0 {
-                continue; // parallel, and this line lies inside the other
+            if numer >= -PARALLEL_EPS * radius.max(1.0) {
+                // Parallel, and this line lies inside the other or within rounding of it (a
+                // duplicate): the other bounds nothing here.
+                continue;
             }
             if denom == 0.0 || numer < -denom.abs() * root {
                 return false; // this line's segment in the disc lies wholly outside the other

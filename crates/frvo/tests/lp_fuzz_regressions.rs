@@ -87,3 +87,22 @@ fn nearly_antiparallel_lines_split_the_violation_evenly() {
     assert!((a - b).abs() < 1e-8, "violations {a} and {b}: {sol:?}");
     assert!(a.max(b) <= sol.violation + 1e-8, "{sol:?}");
 }
+
+/// The same line twice, far enough from the origin that projecting onto the first leaves the
+/// point a rounding error outside the second: once reported infeasible (the two taken as
+/// parallel with the second wholly outside the first).
+#[test]
+fn a_duplicate_line_changes_nothing() {
+    let line = Line {
+        point: V2::new(3.461765682e-314, 25.2509765625),
+        dir: unit(48.501960784313724, 32.505805999157474),
+    };
+    let pref = V2::new(1.7619348246195804e-18, 0.0);
+    let one = solve(&[line], 32.501838714001224, pref, &mut Vec::new());
+    let two = solve(&[line, line], 32.501838714001224, pref, &mut Vec::new());
+    assert!(one.feasible && two.feasible, "{one:?} {two:?}");
+    assert!(
+        (one.velocity - two.velocity).norm() < 1e-12,
+        "{one:?} {two:?}"
+    );
+}
