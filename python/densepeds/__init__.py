@@ -6,12 +6,12 @@ from typing import TYPE_CHECKING, Any
 
 from densepeds._core import __version__
 from densepeds.errors import DensePedsError, DetFileError, InputError, ModelError, ParameterError
-from densepeds.types import Detections
 
 if TYPE_CHECKING:
     from densepeds.pipeline import Pipeline
     from densepeds.scene import make_scene
     from densepeds.tracking import Tracker, Tracks
+    from densepeds.types import Detections
 
 __all__ = [
     "DensePedsError",
@@ -27,8 +27,10 @@ __all__ = [
     "make_scene",
 ]
 
-# Heavier modules (OpenCV, onnxruntime) load on first use, so `import densepeds` stays quick.
+# Heavier modules (numpy, OpenCV, onnxruntime) load on first use, so `import densepeds` stays
+# quick (and the command can take Ctrl-C cleanly from its first moment).
 _LAZY = {
+    "Detections": "densepeds.types",
     "Pipeline": "densepeds.pipeline",
     "Tracker": "densepeds.tracking",
     "Tracks": "densepeds.tracking",

@@ -184,7 +184,7 @@ def run_ablation(
                 _prepare(
                     scene,
                     gt_dir,
-                    rng.clip(scene.config.frames),
+                    _clip(scene.name, rng, scene.config.frames),
                     scene.detections,
                     None,
                     scene.embedder(),
@@ -215,7 +215,7 @@ def run_ablation(
             embedder = helper.reid() if any(k != "none" for k in kinds) else None
             det_fn = helper.detector() if detector is not None else None
             for s in sources:
-                r = rng.clip(s.length or 0)
+                r = _clip(s.name, rng, s.length or 0)
                 dets = None if det_fn is not None else read_detections(s.det_path)  # type: ignore[arg-type]
                 gt_dir = cut_gt(s, r, tmp / "gt")
                 prepared.append(_prepare(s, gt_dir, r, dets, det_fn, embedder, kinds, quiet))
@@ -238,9 +238,18 @@ def run_ablation(
     return result
 
 
+def _clip(name: str, rng: FrameRange, length: int) -> FrameRange:
+    """``rng`` cut to a sequence of ``length`` frames; a range past its end is an error."""
+    if rng.first > length:
+        raise ParameterError(
+            f"{name}: frame range starts at {rng.first}, after its last frame ({length})"
+        )
+    return rng.clip(length)
+
+
 def _cut_gt_scene(scene: Any, rng: FrameRange, root: Path) -> Path:
     seq = scene.write(root, images=False)
-    return cut_gt(SequenceSource(seq), rng.clip(scene.config.frames), root / "cut")
+    return cut_gt(SequenceSource(seq), _clip(scene.name, rng, scene.config.frames), root / "cut")
 
 
 class _NoTracker:

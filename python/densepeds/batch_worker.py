@@ -167,9 +167,9 @@ def run_job(
     models = WorkerModels(shipped, threads)
     try:
         args = run_args(settings, job, threads)
-        src, pipe, dets, out = open_run(args, models)
+        src, pipe, dets, out, rng = open_run(args, models)
         record.open_seconds = time.perf_counter() - start
-        record.frames, record.tracks = _track_source(args, pipe, src, out, dets)
+        record.frames, record.tracks = _track_source(args, pipe, src, out, dets, rng)
         record.fps = pipe.times.fps
         record.status = "done"
         record.tracks_file = job.tracks.name

@@ -8,18 +8,21 @@ from __future__ import annotations
 
 import argparse
 import difflib
+import signal
 import sys
 import tempfile
 import textwrap
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, NoReturn
 
-from densepeds.errors import DensePedsError, ParameterError
+from densepeds.errors import DensePedsError, InputError, ParameterError
 from densepeds.pipeline import DEFAULT_FEATURES, DETECTORS, FEATURES, MOTIONS
 from densepeds.presets import DEFAULT_PRESET, PRESETS, preset_for
 
 EXIT_USAGE = 2
+EXIT_INTERRUPT = 130  # 128 + SIGINT, as shells report Ctrl-C
 COMMANDS = ("run", "eval", "ablate", "scene", "models", "batch")
 FORMATS = ("md", "csv", "json")
 FORMAT_HELP = "output format: md (Markdown table), csv, or json (every metric, full precision)"
@@ -159,6 +162,12 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--seed", type=int, default=0, help="built-in scene: random seed")
     run.add_argument("--scene-frames", type=int, default=150, help="built-in scene: frames")
     run.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    run.add_argument(
+        "--allow-partial",
+        action="store_true",
+        help="keep the tracks of a input that ends before its expected frame count (a truncated "
+        "video, an image folder shorter than its seqLength) instead of failing",
+    )
 
     ev = sub.add_parser(
         "eval",
@@ -321,45 +330,126 @@ def _progress(total: int | None, quiet: bool, desc: str) -> Any:
     )
 
 
+class _Interrupted(KeyboardInterrupt):
+    """Ctrl-C during a run, after the frames tracked so far were saved; the message says where."""
+
+
+class _Terminated(BaseException):
+    """SIGTERM or SIGHUP: raised in the main thread so that every cleanup runs."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def _expected_frames(src: Any, rng: Any) -> int | None:
+    """Frames a run over ``rng`` should decode, where the source knows its length."""
+    if src.length is None:
+        return None
+    return max(0, (rng.clip(src.length).last or 0) - rng.first + 1)
+
+
 def _track_source(
-    args: argparse.Namespace, pipe: Any, src: Any, out: Path, dets: Any = None
+    args: argparse.Namespace,
+    pipe: Any,
+    src: Any,
+    out: Path,
+    dets: Any = None,
+    rng: Any = None,
+    keep_on_interrupt: bool = True,
 ) -> tuple[int, int]:
-    """Run the pipeline over a source, write tracks and the optional video; (frames, ids)."""
-    from densepeds.motio import write_tracks
+    """Run the pipeline over a source, write tracks and the optional video; (frames, ids).
+
+    Nothing is written when no frame was tracked, or (unless ``--allow-partial``) when the input
+    ended before its expected frame count. On Ctrl-C the frames tracked so far are written and
+    :class:`_Interrupted` says so.
+    """
+    from densepeds.motio import probe_output
     from densepeds.pipeline import track_rows
     from densepeds.video import AnnotatedVideoWriter, parse_frame_range
 
-    rng = parse_frame_range(args.frames)
-    total = None
-    if src.length is not None:
-        total = max(0, (rng.clip(src.length).last or 0) - rng.first + 1)
+    rng = parse_frame_range(rng if rng is not None else args.frames)
+    expected = _expected_frames(src, rng)
+    # Unwritable outputs fail now, not after the run.
+    probe_output(out)
     writer = AnnotatedVideoWriter(args.video, fps=src.fps) if args.video else None
+    if args.video:
+        probe_output(args.video)
     rows: list[tuple[float, ...]] = []
     ids: set[int] = set()
     frames = 0
-    bar = _progress(total, args.quiet, src.name)
+    bar = _progress(expected, args.quiet, src.name)
+    interrupted = False
     try:
         for res in pipe.run_frames(src, rng, dets):
             with pipe.times.stage("output"):
                 rows.extend(track_rows(res.frame_no, res.tracks))
                 ids.update(res.tracks.ids.tolist())
                 if writer is not None:
-                    writer.write(res.image, res.tracks.ids, res.tracks.boxes, size=src.size)
+                    writer.write(
+                        res.image,
+                        res.tracks.ids,
+                        res.tracks.boxes,
+                        size=src.size,
+                        frame_no=res.frame_no,
+                    )
             frames += 1
             bar.update(1)
+    except KeyboardInterrupt:
+        interrupted = True
     except BaseException:
         if writer is not None:
             writer.abort()
         raise
     finally:
         bar.close()
+    try:
+        if frames == 0:
+            raise ParameterError(f"{src.name}: no frames in range {args.frames or 'all'}")
+        if interrupted:
+            if not keep_on_interrupt:
+                raise KeyboardInterrupt
+            _finish(args, out, rows, writer, pipe)
+            raise _Interrupted(
+                f"interrupted after {frames} frames (last {rng.first + frames - 1}); their tracks "
+                f"are in {out}" + (f" and {args.video}" if writer is not None else "")
+            )
+        if expected is not None and frames < expected:
+            short = (
+                f"{src.name}: decoded {frames} of {expected} frames: the input ends early "
+                "(truncated, or shorter than its header or seqLength says)"
+            )
+            if not getattr(args, "allow_partial", False):
+                raise InputError(
+                    f"{short}; pass --allow-partial to keep the tracks of those frames"
+                )
+            _note(args, f"warning: {short}; tracks of the {frames} frames kept (--allow-partial)")
+    except BaseException:
+        if writer is not None:
+            writer.abort()
+        raise
+    _finish(args, out, rows, writer, pipe)
+    return frames, len(ids)
+
+
+def _finish(
+    args: argparse.Namespace, out: Path, rows: list[tuple[float, ...]], writer: Any, pipe: Any
+) -> None:
+    """Write the video (checked) and the tracks; say which codec the video got."""
+    from densepeds.motio import write_tracks
+    from densepeds.video import CODEC_NAMES
+
     with pipe.times.stage("output"):
-        write_tracks(out, rows)
         if writer is not None:
             writer.close()
-    if frames == 0:
-        raise ParameterError(f"{src.name}: no frames in range {args.frames or 'all'}")
-    return frames, len(ids)
+        write_tracks(out, rows)
+    if writer is not None and writer.codec is not None:
+        name = CODEC_NAMES.get(writer.codec, writer.codec)
+        _note(args, f"note: {writer.note}" if writer.note else f"video codec: {name}")
+
+
+def _note(args: argparse.Namespace, text: str) -> None:
+    sys.stderr.write(f"densepeds {args.command}: {text}\n")
 
 
 def _summary(name: str, frames: int, n_ids: int, out: Path, pipe: Any, video: Path | None) -> str:
@@ -392,21 +482,22 @@ def _cmd_run(args: argparse.Namespace) -> int:
     parse_frame_range(args.frames)  # a bad range fails before any work
     if args.input is None:
         return _run_scene(args)
-    src, pipe, dets, out = open_run(args)
-    frames, n_ids = _track_source(args, pipe, src, out, dets)
+    src, pipe, dets, out, rng = open_run(args)
+    frames, n_ids = _track_source(args, pipe, src, out, dets, rng)
     print(_summary(src.name, frames, n_ids, out, pipe, args.video))
     return 0
 
 
-def open_run(args: argparse.Namespace, models: Any = None) -> tuple[Any, Any, Any, Path]:
-    """``run``'s set-up for one INPUT: (frame source, pipeline, det-file detections, tracks path).
+def open_run(args: argparse.Namespace, models: Any = None) -> tuple[Any, Any, Any, Path, Any]:
+    """``run``'s set-up for one INPUT: (frame source, pipeline, det-file detections, tracks path,
+    frame range).
 
     ``models`` (``densepeds.batch``): an object whose ``detector(kind, path)`` and ``reid(path)``
     give loaded models, shared by the inputs of a batch; by default the pipeline loads its own.
     """
-    from densepeds.motio import read_detections
+    from densepeds.motio import read_detections, safe_name
     from densepeds.pipeline import Pipeline, default_features
-    from densepeds.video import SequenceSource, open_source
+    from densepeds.video import SequenceSource, open_source, parse_frame_range
 
     src = open_source(args.input)
     has_images = not isinstance(src, SequenceSource) or src.has_images
@@ -422,7 +513,7 @@ def open_run(args: argparse.Namespace, models: Any = None) -> tuple[Any, Any, An
             f"--features {features} needs frames, and {args.input} has none (use --features none)"
         )
     # Read the det file and load the models before tracking, so that mistakes surface at once.
-    dets = read_detections(args.detections) if args.detections else None
+    dets: Any = read_detections(args.detections) if args.detections else None
     detector_spec: Any = detector
     reid_spec: Any = args.reid_model
     if models is not None:
@@ -445,8 +536,42 @@ def open_run(args: argparse.Namespace, models: Any = None) -> tuple[Any, Any, An
         pipe.detector()
     if features != "none":
         pipe.reid()
-    out = args.out or Path("out") / f"{src.name}.txt"
-    return src, pipe, dets, out
+    rng = parse_frame_range(args.frames)
+    if not has_images and detector is None:
+        dets = pipe.source_detections(src, dets if dets is not None else args.detections)
+        rng = _stop_after_detections(args, src, rng, dets, pipe)
+    out = args.out or Path("out") / f"{safe_name(src.name, 'tracks')}.txt"
+    return src, pipe, dets, out, rng
+
+
+def _stop_after_detections(
+    args: argparse.Namespace, src: Any, rng: Any, dets: Any, pipe: Any
+) -> Any:
+    """A detections-only run ends where no track can be reported any more: after the last
+    detection and the frames a lost track stays in the output. Later frames would only be empty
+    (a ``seqLength`` far beyond the detections would otherwise run for hours); says so."""
+    from densepeds.video import FrameRange
+
+    if src.length is None or rng.first > src.length:
+        return rng
+    params = getattr(pipe.tracker, "params", {})
+    coast = int(params.get("output_lost", 0)) if isinstance(params, dict) else 0
+    last_det = max((k for k, d in dets.items() if len(d)), default=0)
+    end = last_det + coast
+    planned = rng.clip(src.length).last or 0
+    if planned <= end:
+        return rng
+    if end >= rng.first:
+        _note(
+            args,
+            f"{src.name}: {src.length} frames, but the detections end at frame {last_det}; "
+            f"tracked to frame {end} (no track is reported after it)",
+        )
+        return FrameRange(rng.first, end)
+    raise InputError(
+        f"{src.name}: no detections in frames {rng.first}:{planned} (the last is at frame "
+        f"{last_det})"
+    )
 
 
 def _run_scene(args: argparse.Namespace) -> int:
@@ -470,7 +595,7 @@ def _run_scene(args: argparse.Namespace) -> int:
     with tempfile.TemporaryDirectory(prefix="densepeds-scene-") as tmp:
         seq = scene.write(tmp, images=False)
         out = args.out or Path(tmp) / f"{scene.name}.txt"
-        frames, n_ids = _track_source(args, pipe, scene, out)
+        frames, n_ids = _track_source(args, pipe, scene, out, keep_on_interrupt=bool(args.out))
         result = evaluate([seq], out)
     print(
         f"Built-in scene (seed {args.seed}): {scene.positions.shape[1]} people, "
@@ -562,6 +687,9 @@ def _cmd_scene(args: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """The ``densepeds`` command. Every failure the user can cause (bad input, options or models,
+    unwritable or full outputs, interrupts) ends here as one line on stderr: exit 2, or 130 for
+    Ctrl-C and 128 + N for a termination signal N (after removing temporary files)."""
     args_list = _with_command(list(sys.argv[1:] if argv is None else argv))
     args = build_parser().parse_args(args_list)
     from densepeds.batch import cmd_batch
@@ -574,16 +702,28 @@ def main(argv: Sequence[str] | None = None) -> int:
         "models": _cmd_models,
         "batch": cmd_batch,
     }
+    prefix = f"densepeds {args.command}"
     try:
-        return handlers[args.command](args)
+        with _termination_raises():
+            return handlers[args.command](args)
     except DensePedsError as err:
-        sys.stderr.write(f"densepeds {args.command}: error: {_one_line(err)}\n")
+        sys.stderr.write(f"{prefix}: error: {_one_line(err)}\n")
         return EXIT_USAGE
+    except _Interrupted as err:
+        sys.stderr.write(f"{prefix}: {_one_line(err)}\n")
+        return EXIT_INTERRUPT
     except KeyboardInterrupt:
-        sys.stderr.write("densepeds: interrupted\n")
-        return 130
+        sys.stderr.write(f"{prefix}: interrupted\n")
+        return EXIT_INTERRUPT
+    except _Terminated as err:
+        sys.stderr.write(f"{prefix}: terminated ({err}); temporary files removed\n")
+        return 128 + err.signum
     except BrokenPipeError:
         return 1
+    except OSError as err:  # a file or folder the user named: permissions, a full disk, ...
+        where = f"{err.filename}: " if err.filename else ""
+        sys.stderr.write(f"{prefix}: error: {where}{_one_line(err.strerror or err)}\n")
+        return EXIT_USAGE
 
 
 def _with_command(args_list: list[str]) -> list[str]:
@@ -610,7 +750,28 @@ def _with_command(args_list: list[str]) -> list[str]:
 _TOP_OPTIONS = ("-h", "--help", "--version", "-V")
 
 
-def _one_line(err: BaseException) -> str:
+@contextmanager
+def _termination_raises() -> Iterator[None]:
+    """SIGTERM and SIGHUP raise :class:`_Terminated` in the main thread for the block (so that
+    ``finally`` blocks remove temporary files), instead of ending the process on the spot."""
+
+    def raise_terminated(signum: int, _frame: object) -> None:
+        raise _Terminated(signum)
+
+    saved: dict[signal.Signals, Any] = {}
+    try:
+        for sig in (signal.SIGTERM, signal.SIGHUP):
+            saved[sig] = signal.signal(sig, raise_terminated)
+    except ValueError:  # not the main thread: leave signals alone
+        pass
+    try:
+        yield
+    finally:
+        for sig, handler in saved.items():
+            signal.signal(sig, handler)
+
+
+def _one_line(err: BaseException | str) -> str:
     return " ".join(str(err).split()) or type(err).__name__
 
 

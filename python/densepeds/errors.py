@@ -20,3 +20,7 @@ class ModelError(DensePedsError):
 
 class ParameterError(DensePedsError, ValueError):
     """An option value outside its allowed range or set."""
+
+
+class OutputError(DensePedsError):
+    """An output that cannot be written completely: permissions, a full disk, a path in a file."""

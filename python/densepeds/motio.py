@@ -12,9 +12,12 @@ Frames are numbered from 1. Every parse error names the file and the 1-based lin
 from __future__ import annotations
 
 import configparser
+import contextlib
+import errno
 import os
-import tempfile
-from collections.abc import Iterable
+import re
+import secrets
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -22,24 +25,37 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
-from densepeds.errors import DetFileError, InputError
+from densepeds.errors import DetFileError, InputError, OutputError
 from densepeds.types import Detections
 
 __all__ = [
     "SCORE_MAPPINGS",
     "ScoreMapping",
     "SeqInfo",
+    "atomic_output",
+    "commit_temp",
+    "discard_temp",
+    "probe_output",
     "read_detections",
     "read_gt",
     "read_mot_rows",
     "read_seqinfo",
     "read_tracks",
     "rescale_scores",
+    "reserve_temp",
+    "safe_name",
     "score_scale",
+    "write_bytes",
+    "write_text",
     "write_tracks",
 ]
 
 FloatArray = npt.NDArray[np.float64]
+
+# Largest frame count a seqinfo.ini may declare (frame numbers fit a 32-bit integer).
+MAX_SEQ_LENGTH = 2**31 - 1
+# Largest track id a tracks file may hold (ids fit a 32-bit integer, as MOTChallenge tools assume).
+MAX_TRACK_ID = 2**31 - 1
 
 
 @dataclass(frozen=True)
@@ -71,11 +87,16 @@ def read_seqinfo(seq_dir: str | os.PathLike[str]) -> SeqInfo:
     seq_path = ini.parent
     if not ini.is_file():
         raise InputError(f"{ini}: no seqinfo.ini (is {seq_path} a MOTChallenge sequence folder?)")
-    parser = configparser.ConfigParser()
+    # No interpolation: a '%' in a value is a character, not a reference.
+    parser = configparser.ConfigParser(interpolation=None)
     try:
         parser.read(ini, encoding="utf-8")
     except configparser.Error as err:
-        raise InputError(f"{ini}: not a valid ini file ({err.message})") from err
+        raise InputError(f"{ini}: not a valid ini file ({_one_line(err.message)})") from err
+    except UnicodeDecodeError as err:
+        raise InputError(f"{ini}: not UTF-8 text (byte {err.start})") from err
+    except OSError as err:
+        raise InputError(f"{ini}: cannot read ({err.strerror})") from err
     if "Sequence" not in parser:
         raise InputError(f"{ini}: missing the [Sequence] section")
     sec = parser["Sequence"]
@@ -90,12 +111,15 @@ def read_seqinfo(seq_dir: str | os.PathLike[str]) -> SeqInfo:
             value = kind(raw)
         except ValueError as err:
             raise InputError(f"{ini}: {key}={raw!r} is not a valid {kind.__name__}") from err
-        if kind in (int, float) and not (np.isfinite(value) and value > 0):
+        if kind in (int, float) and not (np.isfinite(float(value)) and value > 0):
             raise InputError(f"{ini}: {key}={raw!r} must be positive")
+        if kind is int and value > MAX_SEQ_LENGTH:
+            raise InputError(f"{ini}: {key}={raw} is too large (at most {MAX_SEQ_LENGTH})")
         return value
 
     return SeqInfo(
-        name=str(field("name", str, seq_path.name)),
+        # The name names output files (out/<name>.txt): never a path.
+        name=safe_name(str(field("name", str, seq_path.name)), seq_path.name),
         length=int(field("seqLength", int)),  # type: ignore[call-overload]
         width=int(field("imWidth", int)),  # type: ignore[call-overload]
         height=int(field("imHeight", int)),  # type: ignore[call-overload]
@@ -279,10 +303,12 @@ def read_tracks(path: str | os.PathLike[str]) -> FloatArray:
         return out
     _check_sizes(path, data, nos)
     ids = data[:, 1]
-    bad = ids != np.round(ids)
+    bad = (ids != np.round(ids)) | (ids < 0) | (ids > MAX_TRACK_ID)
     if bad.any():
         i = int(np.argmax(bad))
-        raise DetFileError(f"{path}:{nos[i]}: track id {ids[i]:g} is not an integer")
+        raise DetFileError(
+            f"{path}:{nos[i]}: track id {ids[i]:g} is not an integer in 0..{MAX_TRACK_ID}"
+        )
     out[:, :2] = data[:, :2]
     out[:, 2:4] = data[:, 2:4]
     out[:, 4:6] = data[:, 2:4] + data[:, 4:6]
@@ -315,26 +341,167 @@ def write_tracks(
 ) -> int:
     """Write tracks in MOTChallenge format, sorted by frame then id. Returns the row count.
 
-    ``rows``: (frame, id, x1, y1, x2, y2, score) tuples or a [K, 7] array. The file is written to
-    a temporary file beside ``path`` and moved over it only when complete, so an interrupted run
-    never leaves a truncated file that looks finished.
+    ``rows``: (frame, id, x1, y1, x2, y2, score) tuples or a [K, 7] array. Written through
+    :func:`write_text`: complete or not at all, mode following the umask; a failed write raises
+    :class:`~densepeds.errors.OutputError`.
     """
     arr = _rows_array(rows)
     arr = arr[np.lexsort((arr[:, 1], arr[:, 0]))]
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
     lines = [
         f"{int(f)},{int(i)},{x1:.3f},{y1:.3f},{x2 - x1:.3f},{y2 - y1:.3f},{s:.6g},-1,-1,-1\n"
         for f, i, x1, y1, x2, y2, s in arr.tolist()
     ]
-    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.writelines(lines)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, out)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    write_text(path, "".join(lines))
     return len(lines)
+
+
+# --- checked, atomic output files -----------------------------------------------------------------
+
+_TEMP_TAG = "densepeds"
+
+
+def safe_name(name: str, fallback: str = "output") -> str:
+    """``name`` (taken from an input: a sequence name, a file stem) made safe as a file name.
+
+    Anything but letters, digits, ``-``, ``_``, ``.``, ``+`` and spaces becomes ``_`` (so no path
+    separator, drive or control character survives), leading dots and spaces are dropped (no
+    ``..``, no hidden file), and the result is at most 200 characters; ``fallback`` (made safe
+    the same way) when nothing is left.
+    """
+    cleaned = re.sub(r"[^\w\-+. ]", "_", name, flags=re.ASCII).lstrip(". ").rstrip(" ")[:200]
+    if cleaned:
+        return cleaned
+    return safe_name(fallback) if fallback and fallback != name else "output"
+
+
+def _one_line(text: str) -> str:
+    return " ".join(text.split())
+
+
+def _os_reason(err: OSError) -> str:
+    if err.errno == errno.EFBIG:
+        return "file too large (or the file size limit was reached)"
+    return err.strerror or type(err).__name__
+
+
+def _output_error(path: Path, err: OSError) -> OutputError:
+    return OutputError(f"{path}: cannot write ({_os_reason(err)})")
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # e.g. EPERM: it exists
+        return True
+    return True
+
+
+def _remove_stale_temps(path: Path) -> None:
+    """Remove temporaries for ``path`` left by a process that was killed (``kill -9``)."""
+    pattern = re.compile(
+        rf"\.{re.escape(path.name)}\.{_TEMP_TAG}-(\d+)-[0-9a-f]+{re.escape(path.suffix)}"
+    )
+    try:
+        entries = list(path.parent.iterdir())
+    except OSError:
+        return
+    for entry in entries:
+        m = pattern.fullmatch(entry.name)
+        if m and int(m.group(1)) != os.getpid() and not _pid_alive(int(m.group(1))):
+            with contextlib.suppress(OSError):
+                entry.unlink()
+
+
+def reserve_temp(path: str | os.PathLike[str]) -> Path:
+    """Create an empty hidden temporary file beside ``path`` and return its name.
+
+    The file is created with mode ``0o666`` less the umask (what ``open()`` gives), so the output
+    moved into place by :func:`commit_temp` follows the umask. Its name carries this process's
+    id, so that temporaries of a killed process are found and removed by the next call for the
+    same ``path``. Raises :class:`OutputError` when the folder cannot be made or written, or
+    ``path`` is a folder.
+    """
+    out = Path(path)
+    try:
+        if out.is_dir():
+            raise OutputError(f"{out}: is a folder, not a file")
+        for parent in out.parents:
+            if parent.exists():
+                if not parent.is_dir():
+                    raise OutputError(f"{out}: {parent} is a file, not a folder")
+                break
+        out.parent.mkdir(parents=True, exist_ok=True)
+        _remove_stale_temps(out)
+        while True:
+            tmp = out.parent / (
+                f".{out.name}.{_TEMP_TAG}-{os.getpid()}-{secrets.token_hex(4)}{out.suffix}"
+            )
+            try:
+                fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+            except FileExistsError:
+                continue
+            os.close(fd)
+            return tmp
+    except OSError as err:
+        raise _output_error(out, err) from err
+
+
+def commit_temp(tmp: Path, path: str | os.PathLike[str]) -> None:
+    """Move a finished temporary over ``path`` (atomic on one file system)."""
+    out = Path(path)
+    try:
+        os.replace(tmp, out)
+    except OSError as err:
+        discard_temp(tmp)
+        raise _output_error(out, err) from err
+    except BaseException:
+        discard_temp(tmp)
+        raise
+
+
+def discard_temp(tmp: Path | None) -> None:
+    """Remove a temporary (if any); never raises."""
+    if tmp is not None:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+
+
+def probe_output(path: str | os.PathLike[str]) -> None:
+    """Check, before a long run, that ``path`` can be written (folder made, a file created and
+    removed there); raises :class:`OutputError` saying why not."""
+    discard_temp(reserve_temp(path))
+
+
+@contextlib.contextmanager
+def atomic_output(path: str | os.PathLike[str]) -> Iterator[Path]:
+    """Yield a temporary name beside ``path`` to write; it is moved over ``path`` when the block
+    ends normally and removed on any exception (interrupts included). An ``OSError`` inside the
+    block becomes :class:`OutputError` naming ``path``."""
+    out = Path(path)
+    tmp = reserve_temp(out)
+    try:
+        yield tmp
+    except OSError as err:
+        discard_temp(tmp)
+        raise _output_error(out, err) from err
+    except BaseException:
+        discard_temp(tmp)
+        raise
+    commit_temp(tmp, out)
+
+
+def write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
+    """Write ``data`` to ``path`` completely or not at all: through a temporary beside it,
+    flushed and synced before it is moved into place. Raises :class:`OutputError` on any failed
+    write (a full disk, permissions, a path under a file)."""
+    with atomic_output(path) as tmp, open(tmp, "wb") as fh:
+        fh.write(data)
+        fh.flush()
+        os.fsync(fh.fileno())
+
+
+def write_text(path: str | os.PathLike[str], text: str) -> None:
+    """:func:`write_bytes` of ``text`` in UTF-8."""
+    write_bytes(path, text.encode("utf-8"))

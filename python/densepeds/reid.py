@@ -123,7 +123,8 @@ class ReID:
             )
         self.height, self.width = int(hw[0]), int(hw[1])  # type: ignore[arg-type]
         self.input_name = inputs[0].name
-        self.dim = int(self._run(np.zeros((1, self.height, self.width, 3), np.uint8)).shape[1])
+        self._raw_shape: tuple[int, ...] | None = None  # the network's last output shape
+        self.dim = self._probe_dim()
         self.threads = threads
         self._pooled: tuple[ort.InferenceSession, tuple[int, int]] | None = None
         policy = ReusePolicy() if reuse is True else reuse or None
@@ -131,6 +132,20 @@ class ReID:
         self._previous: dict[str, _Previous] = {}  # per feature kind: the last frame's rows
         self.embedded = 0  # crops run through the network (with reuse, fewer than detections)
         self.reused = 0
+
+    def _probe_dim(self) -> int:
+        """The embedding size, from one blank crop; rejects a model whose output is not an
+        embedding ([N, D] or [N, D, 1, 1], smaller than its input; e.g. an identity model)."""
+        self._run(np.zeros((1, self.height, self.width, 3), np.uint8))
+        shape = tuple(self._raw_shape or ())
+        pixels = self.height * self.width * 3
+        flat = shape[:2] if len(shape) == 4 and shape[2:] == (1, 1) else shape
+        if len(flat) != 2 or flat[0] != 1 or not 1 <= flat[1] < pixels:
+            raise ModelError(
+                f"{self.path}: output {list(shape)} is not an embedding: a re-ID model gives "
+                f"[N, D] (or [N, D, 1, 1]) with D below the input's {pixels} values"
+            )
+        return int(flat[1])
 
     def reset(self) -> None:
         """Forget the previous frame (start of a new video): nothing is reused across it."""
@@ -158,6 +173,7 @@ class ReID:
             session, _ = self._pooled_session()
             feed[onnxutil.POOL_WEIGHTS] = weights
             out = session.run(None, feed)[0]
+        self._raw_shape = np.shape(out)
         return np.asarray(out, np.float32).reshape(len(batch_bgr), -1)
 
     def _input(self, batch_bgr: npt.NDArray[np.uint8]) -> np.ndarray:
@@ -201,6 +217,12 @@ class ReID:
             if person is not None:
                 weights = self._pool_weights(person[start : start + len(chunk)])
             out[start : start + len(chunk)] = self._run(batch, weights)
+        bad = ~np.isfinite(out).all(axis=1)
+        if bad.any():
+            raise ModelError(
+                f"{self.path}: the re-ID model gave non-finite embeddings (NaN or inf) for "
+                f"{int(bad.sum())} of {len(out)} crops"
+            )
         norms = np.linalg.norm(out, axis=1, keepdims=True)
         return (out / np.maximum(norms, 1e-12)).astype(np.float32)
 

@@ -9,10 +9,11 @@ from __future__ import annotations
 
 import os
 import re
-import tempfile
+import sys
 import threading
 from collections import deque
 from collections.abc import Generator, Iterator
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 from queue import Full, Queue
@@ -22,7 +23,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from densepeds.errors import InputError, ParameterError
+from densepeds.errors import InputError, OutputError, ParameterError
 
 __all__ = [
     "AnnotatedVideoWriter",
@@ -32,6 +33,7 @@ __all__ = [
     "SequenceSource",
     "VideoSource",
     "id_colour",
+    "label_layout",
     "open_source",
     "parse_frame_range",
 ]
@@ -307,17 +309,132 @@ def id_colour(track_id: int) -> tuple[int, int, int]:
     return int(b), int(g), int(r)
 
 
+# Codecs tried for an annotated video, in order, by container. H.264 ("avc1") plays in browsers;
+# OpenCV's own FFmpeg build often lacks an H.264 encoder, then MPEG-4 Part 2 ("mp4v") is used.
+_CODECS = {
+    ".mp4": ("avc1", "mp4v"),
+    ".m4v": ("avc1", "mp4v"),
+    ".mov": ("avc1", "mp4v"),
+}
+_DEFAULT_CODECS = ("MJPG",)
+CODEC_NAMES = {"avc1": "H.264", "mp4v": "MPEG-4 Part 2", "MJPG": "Motion JPEG"}
+
+_LABEL_FONT = cv2.FONT_HERSHEY_SIMPLEX
+_LABEL_SCALE = 0.4
+_LABEL_PAD = 2
+# From this many people in a frame, boxes are drawn one pixel wide so that they hide less.
+_DENSE = 15
+
+Rect = tuple[int, int, int, int]  # x1, y1, x2, y2 (exclusive)
+
+
+@contextmanager
+def _quiet_stderr() -> Iterator[None]:
+    """Silence file descriptor 2 (FFmpeg and OpenCV print there directly) for the block."""
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError):
+        yield
+        return
+    try:
+        with open(os.devnull, "wb") as null:
+            os.dup2(null.fileno(), 2)
+            yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
+@contextmanager
+def _opencv_log_level(level: int) -> Iterator[None]:
+    """OpenCV's log level lowered to ``level`` (never raised) for the block."""
+    old = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(min(old, level))
+    try:
+        yield
+    finally:
+        cv2.utils.logging.setLogLevel(old)
+
+
+def _overlap(a: Rect, b: Rect) -> int:
+    w = min(a[2], b[2]) - max(a[0], b[0])
+    h = min(a[3], b[3]) - max(a[1], b[1])
+    return w * h if w > 0 and h > 0 else 0
+
+
+def label_layout(
+    boxes: npt.ArrayLike,
+    sizes: list[tuple[int, int]],
+    frame_size: tuple[int, int],
+    reserved: list[Rect] | None = None,
+) -> list[Rect]:
+    """Where to draw each box's id tag (``sizes``: tag width, height) so that tags avoid each
+    other and ``reserved`` areas (the frame counter).
+
+    Each tag tries, in order: above the box's top-left corner, inside it, above its top-right
+    corner, at the foot point (below the box, centred), inside the bottom edge, then the same
+    spots shifted sideways by one tag width; it takes the first spot inside the frame that
+    overlaps nothing placed so far, or else the one overlapping least. People lowest in the frame
+    (nearest the camera in a crowd) are placed first.
+    """
+    arr = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+    width, height = frame_size
+    placed: list[Rect] = list(reserved or [])
+    out: list[Rect] = [(0, 0, 0, 0)] * len(arr)
+    for k in np.argsort(-arr[:, 3], kind="stable").tolist():
+        x1, y1, x2, y2 = (int(round(v)) for v in arr[k])
+        tw, th = sizes[k]
+        cx = (x1 + x2) // 2
+        spots = [
+            (x1, y1 - th),
+            (x1, y1),
+            (x2 - tw, y1 - th),
+            (cx - tw // 2, y2),
+            (cx - tw // 2, y2 - th),
+        ]
+        spots += [(x + dx, y) for dx in (tw, -tw) for x, y in spots]
+        best: Rect | None = None
+        best_cost = -1
+        for x, y in spots:
+            x = min(max(x, 0), max(width - tw, 0))
+            y = min(max(y, 0), max(height - th, 0))
+            rect = (x, y, x + tw, y + th)
+            cost = sum(_overlap(rect, r) for r in placed)
+            if best is None or cost < best_cost:
+                best, best_cost = rect, cost
+            if cost == 0:
+                break
+        assert best is not None
+        placed.append(best)
+        out[k] = best
+    return out
+
+
+def _tag_size(text: str) -> tuple[tuple[int, int], int]:
+    (tw, th), base = cv2.getTextSize(text, _LABEL_FONT, _LABEL_SCALE, 1)
+    return (tw + 2 * _LABEL_PAD, th + base + 2 * _LABEL_PAD), base
+
+
 @dataclass
 class AnnotatedVideoWriter:
-    """Writes frames with each track's box, id and a short trail of its recent foot points.
+    """Writes frames with each track's box, id tag, a short trail of its recent foot points and a
+    frame counter.
 
-    The video goes to a temporary file beside ``path`` and is moved into place by ``close()``,
-    so an interrupted run leaves no half-written video under the final name.
+    The video goes to a hidden temporary file beside ``path`` and is moved into place by
+    ``close()`` only after it has been read back with every frame (a full disk or a failed write
+    raises :class:`~densepeds.errors.OutputError` and leaves nothing under the final name);
+    ``abort()`` (and any exception inside a ``with`` block) removes it. The file follows the
+    umask. MP4 output is H.264 where OpenCV's FFmpeg has an encoder for it, else MPEG-4 Part 2:
+    ``codec`` says which was used, and ``note`` explains a fallback.
     """
 
     path: Path
     fps: float = 25.0
     trail: int = 20
+    codec: str | None = None
+    note: str | None = None
+    frames_written: int = 0
     _writer: cv2.VideoWriter | None = None
     _tmp: Path | None = None
     _size: tuple[int, int] | None = None
@@ -329,19 +446,30 @@ class AnnotatedVideoWriter:
             raise ParameterError(f"{self.path}: video output needs a video extension like .mp4")
 
     def _open(self, width: int, height: int) -> cv2.VideoWriter:
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(
-            dir=self.path.parent, prefix=f".{self.path.stem}.", suffix=self.path.suffix
-        )
-        os.close(fd)
-        self._tmp = Path(tmp)
-        codec = "mp4v" if self.path.suffix.lower() in {".mp4", ".m4v", ".mov"} else "MJPG"
-        writer = cv2.VideoWriter(tmp, cv2.VideoWriter.fourcc(*codec), self.fps, (width, height))
-        if not writer.isOpened():
-            self._tmp.unlink(missing_ok=True)
-            raise InputError(f"{self.path}: cannot open a video writer ({codec})")
-        self._size = (width, height)
-        return writer
+        from densepeds.motio import discard_temp, reserve_temp
+
+        self._tmp = reserve_temp(self.path)
+        codecs = _CODECS.get(self.path.suffix.lower(), _DEFAULT_CODECS)
+        for i, codec in enumerate(codecs):
+            fallback = i == len(codecs) - 1
+            # Probing a missing encoder makes FFmpeg print several lines: keep them quiet.
+            with nullcontext() if fallback else _quiet_stderr():
+                writer = cv2.VideoWriter(
+                    str(self._tmp), cv2.VideoWriter.fourcc(*codec), self.fps, (width, height)
+                )
+            if writer.isOpened():
+                self.codec = codec
+                if i > 0:
+                    self.note = (
+                        f"no {CODEC_NAMES[codecs[0]]} encoder in this OpenCV build; "
+                        f"{self.path.name} is {CODEC_NAMES.get(codec, codec)} ({codec}), "
+                        "which browsers may not play"
+                    )
+                self._size = (width, height)
+                return writer
+        discard_temp(self._tmp)
+        self._tmp = None
+        raise OutputError(f"{self.path}: cannot open a video writer ({', '.join(codecs)})")
 
     def write(
         self,
@@ -349,8 +477,10 @@ class AnnotatedVideoWriter:
         ids: npt.ArrayLike,
         boxes: npt.ArrayLike,
         size: tuple[int, int] | None = None,
+        frame_no: int | None = None,
     ) -> None:
-        """Draw the tracks on a copy of ``image`` (white canvas of ``size`` if None), add it."""
+        """Draw the tracks on a copy of ``image`` (white canvas of ``size`` if None), add it.
+        ``frame_no`` is drawn as the frame counter (default: frames written so far + 1)."""
         if image is None:
             if size is None and self._size is None:
                 raise InputError("annotated video needs frames or a frame size")
@@ -364,13 +494,34 @@ class AnnotatedVideoWriter:
             raise InputError(f"frame size changed mid-video: {canvas.shape[1::-1]} != {self._size}")
         ids_arr = np.asarray(ids, dtype=np.int64).reshape(-1)
         box_arr = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
-        self._draw(canvas, ids_arr, box_arr)
-        self._writer.write(canvas)
+        counter = self._draw_counter(
+            canvas, self.frames_written + 1 if frame_no is None else frame_no
+        )
+        self._draw(canvas, ids_arr, box_arr, counter)
+        # A failed write only logs an OpenCV warning per frame (VideoWriter.write returns
+        # nothing): keep those quiet; close() reads the file back and reports the failure once.
+        with _opencv_log_level(cv2.utils.logging.LOG_LEVEL_ERROR):
+            self._writer.write(canvas)
+        self.frames_written += 1
+
+    @staticmethod
+    def _draw_counter(canvas: Image, frame_no: int) -> Rect:
+        text = f"frame {frame_no}"
+        (tw, th), base = cv2.getTextSize(text, _LABEL_FONT, 0.5, 1)
+        rect = (0, 0, tw + 8, th + base + 8)
+        cv2.rectangle(canvas, rect[:2], (rect[2] - 1, rect[3] - 1), (0, 0, 0), -1)
+        cv2.putText(canvas, text, (4, 4 + th), _LABEL_FONT, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
+        return rect
 
     def _draw(
-        self, canvas: Image, ids: npt.NDArray[np.int64], boxes: npt.NDArray[np.float64]
+        self,
+        canvas: Image,
+        ids: npt.NDArray[np.int64],
+        boxes: npt.NDArray[np.float64],
+        counter: Rect,
     ) -> None:
         seen = set()
+        thickness = 1 if len(ids) >= _DENSE else 2
         for tid, (x1, y1, x2, y2) in zip(ids.tolist(), boxes.tolist(), strict=True):
             seen.add(tid)
             colour = id_colour(tid)
@@ -378,19 +529,23 @@ class AnnotatedVideoWriter:
             trail.append((int(round((x1 + x2) / 2)), int(round(y2))))
             if len(trail) > 1:
                 pts = np.array(trail, np.int32).reshape(-1, 1, 2)
-                cv2.polylines(canvas, [pts], False, colour, 2, cv2.LINE_AA)
+                cv2.polylines(canvas, [pts], False, colour, thickness, cv2.LINE_AA)
             p1, p2 = (int(round(x1)), int(round(y1))), (int(round(x2)), int(round(y2)))
-            cv2.rectangle(canvas, p1, p2, colour, 2)
-            label = str(tid)
-            (tw, th), _ = cv2.getTextSize(label, cv2.FONT_HERSHEY_SIMPLEX, 0.5, 1)
-            top = max(p1[1] - th - 4, 0)
-            cv2.rectangle(canvas, (p1[0], top), (p1[0] + tw + 4, top + th + 4), colour, -1)
+            cv2.rectangle(canvas, p1, p2, colour, thickness)
+        # Tags last, so that no box or trail crosses them.
+        labels = [str(t) for t in ids.tolist()]
+        sizes = [_tag_size(t)[0] for t in labels]
+        h, w = canvas.shape[:2]
+        rects = label_layout(boxes, sizes, (w, h), reserved=[counter])
+        for tid, label, (rx1, ry1, rx2, ry2) in zip(ids.tolist(), labels, rects, strict=True):
+            cv2.rectangle(canvas, (rx1, ry1), (rx2 - 1, ry2 - 1), id_colour(tid), -1)
+            _, base = _tag_size(label)
             cv2.putText(
                 canvas,
                 label,
-                (p1[0] + 2, top + th + 1),
-                cv2.FONT_HERSHEY_SIMPLEX,
-                0.5,
+                (rx1 + _LABEL_PAD, ry2 - _LABEL_PAD - base),
+                _LABEL_FONT,
+                _LABEL_SCALE,
                 (0, 0, 0),
                 1,
                 cv2.LINE_AA,
@@ -400,22 +555,39 @@ class AnnotatedVideoWriter:
                 del self._trails[tid]
 
     def close(self) -> None:
-        """Finish the file and move it into place (nothing is written if no frame came)."""
-        if self._writer is not None:
-            self._writer.release()
-            self._writer = None
-            assert self._tmp is not None
-            os.replace(self._tmp, self.path)
-            self._tmp = None
+        """Finish the file, check it, and move it into place (nothing is written if no frame
+        came). Raises :class:`OutputError` (and removes the file) when fewer frames than were
+        written can be read back."""
+        from densepeds.motio import commit_temp, discard_temp
+
+        if self._writer is None:
+            return
+        self._writer.release()
+        self._writer = None
+        tmp, self._tmp = self._tmp, None
+        assert tmp is not None
+        try:
+            readable = _readable_frames(tmp)
+        except BaseException:
+            discard_temp(tmp)
+            raise
+        if readable < self.frames_written:
+            discard_temp(tmp)
+            raise OutputError(
+                f"{self.path}: the video could not be written completely ({readable} of "
+                f"{self.frames_written} frames readable back; is the disk full?)"
+            )
+        commit_temp(tmp, self.path)
 
     def abort(self) -> None:
         """Drop a partial video."""
+        from densepeds.motio import discard_temp
+
         if self._writer is not None:
             self._writer.release()
             self._writer = None
-        if self._tmp is not None:
-            self._tmp.unlink(missing_ok=True)
-            self._tmp = None
+        discard_temp(self._tmp)
+        self._tmp = None
 
     def __enter__(self) -> AnnotatedVideoWriter:
         return self
@@ -425,3 +597,25 @@ class AnnotatedVideoWriter:
             self.close()
         else:
             self.abort()
+
+
+def _readable_frames(path: Path) -> int:
+    """Frames a just-written video holds, by its container's count (0 if it cannot be opened)."""
+    try:
+        if path.stat().st_size == 0:
+            return 0
+    except OSError:
+        return 0
+    with _quiet_stderr():
+        cap = cv2.VideoCapture(str(path))
+        try:
+            if not cap.isOpened():
+                return 0
+            count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
+            if count <= 0:
+                count = 0
+                while cap.grab():
+                    count += 1
+            return count
+        finally:
+            cap.release()

@@ -11,6 +11,10 @@ use crate::geometry::{cross, left_normal, V2};
 /// Lines whose directions' cross product is below this are treated as parallel.
 const PARALLEL_EPS: f64 = 1e-12;
 
+/// Below this cross product of two lines' directions, their bisector in the infeasible phase is
+/// placed by its offset rather than through their far-away crossing point.
+const NEAR_PARALLEL: f64 = 1e-6;
+
 /// A directed line; its feasible half-plane lies to the left of `dir` (a unit vector).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Line {
@@ -87,10 +91,15 @@ fn lp1(lines: &[Line], i: usize, radius: f64, goal: Goal, out: &mut V2) -> bool 
         let denom = cross(dir, other.dir);
         let numer = cross(other.dir, point - other.point);
         if denom.abs() <= PARALLEL_EPS {
-            if numer < 0.0 {
-                return false; // parallel, and this line lies wholly outside the other
+            if numer >= -PARALLEL_EPS * radius.max(1.0) {
+                // Parallel, and this line lies inside the other or within rounding of it (a
+                // duplicate): the other bounds nothing here.
+                continue;
             }
-            continue;
+            if denom == 0.0 || numer < -denom.abs() * root {
+                return false; // this line's segment in the disc lies wholly outside the other
+            }
+            // Nearly parallel lines crossing inside the disc: the other still bounds t.
         }
         let t = numer / denom;
         if denom > 0.0 {
@@ -149,22 +158,26 @@ fn lp3(lines: &[Line], begin: usize, radius: f64, out: &mut V2, projected: &mut 
         projected.clear();
         for other in &lines[..i] {
             let denom = cross(line.dir, other.dir);
-            let point = if denom.abs() <= PARALLEL_EPS {
-                if line.dir.dot(&other.dir) > 0.0 {
-                    continue; // same direction: the other is less violated everywhere
-                }
-                0.5 * (line.point + other.point)
+            if denom.abs() <= PARALLEL_EPS && line.dir.dot(&other.dir) > 0.0 {
+                continue; // same direction: the other is less violated everywhere
+            }
+            let dir = other.dir - line.dir;
+            let norm = dir.norm();
+            if norm == 0.0 {
+                continue;
+            }
+            let dir = dir / norm;
+            let point = if denom.abs() < NEAR_PARALLEL {
+                // Nearly (anti)parallel: the lines cross far away, where a point loses the
+                // bisector's offset to rounding. Take the bisector's point nearest the origin,
+                // from where both violations are equal: cross(e, v) = cross(do, po) -
+                // cross(dl, pl) with e = do - dl.
+                let c = cross(other.dir, other.point) - cross(line.dir, line.point);
+                (c / norm) * left_normal(dir)
             } else {
                 line.point + (cross(other.dir, line.point - other.point) / denom) * line.dir
             };
-            let dir = other.dir - line.dir;
-            let norm = dir.norm();
-            if norm > 0.0 {
-                projected.push(Line {
-                    point,
-                    dir: dir / norm,
-                });
-            }
+            projected.push(Line { point, dir });
         }
         let before = *out;
         let goal = Goal::Farthest(left_normal(line.dir));

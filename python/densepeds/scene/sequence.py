@@ -181,21 +181,20 @@ class Scene(FrameSource):
     # --- export -------------------------------------------------------------------------------
 
     def write(self, out_dir: str | os.PathLike[str], *, images: bool = True) -> Path:
-        """Save as a MOTChallenge sequence folder ``out_dir/<name>`` and return its path."""
+        """Save as a MOTChallenge sequence folder ``out_dir/<name>`` and return its path.
+
+        Every file is written completely or not at all (a failure raises
+        :class:`~densepeds.errors.OutputError`), and ``seqinfo.ini`` last, so that a folder
+        left by a failed write is not a sequence."""
+        from densepeds.motio import write_bytes, write_text
+
         cfg = self.config
         seq = Path(out_dir) / self.name
-        (seq / "gt").mkdir(parents=True, exist_ok=True)
-        (seq / "det").mkdir(exist_ok=True)
-        (seq / "seqinfo.ini").write_text(
-            f"[Sequence]\nname={self.name}\nimDir=img1\nframeRate={cfg.fps:g}\n"
-            f"seqLength={cfg.frames}\nimWidth={cfg.width}\nimHeight={cfg.height}\nimExt=.jpg\n",
-            encoding="utf-8",
-        )
         gt_lines = [
             f"{int(f)},{int(i)},{x:.2f},{y:.2f},{w:.2f},{h:.2f},1,1,{v:.3f}\n"
             for f, i, x, y, w, h, _, _, v in self.gt_rows.tolist()
         ]
-        (seq / "gt" / "gt.txt").write_text("".join(gt_lines), encoding="utf-8")
+        write_text(seq / "gt" / "gt.txt", "".join(gt_lines))
         det_lines = []
         for k in sorted(self.detections):
             d = self.detections[k]
@@ -203,14 +202,18 @@ class Scene(FrameSource):
                 det_lines.append(
                     f"{k},-1,{x1:.2f},{y1:.2f},{x2 - x1:.2f},{y2 - y1:.2f},{s:.4f},-1,-1,-1\n"
                 )
-        (seq / "det" / "det.txt").write_text("".join(det_lines), encoding="utf-8")
+        write_text(seq / "det" / "det.txt", "".join(det_lines))
         if images:
-            (seq / "img1").mkdir(exist_ok=True)
             for k, image in self.frames():
                 assert image is not None
-                cv2.imwrite(
-                    str(seq / "img1" / f"{k:06d}.jpg"), image, [cv2.IMWRITE_JPEG_QUALITY, 90]
-                )
+                ok, jpeg = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, 90])
+                assert ok, "JPEG encoding of a rendered frame failed"
+                write_bytes(seq / "img1" / f"{k:06d}.jpg", jpeg.tobytes())
+        write_text(
+            seq / "seqinfo.ini",
+            f"[Sequence]\nname={self.name}\nimDir=img1\nframeRate={cfg.fps:g}\n"
+            f"seqLength={cfg.frames}\nimWidth={cfg.width}\nimHeight={cfg.height}\nimExt=.jpg\n",
+        )
         return seq
 
 
