@@ -690,9 +690,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     """The ``densepeds`` command. Every failure the user can cause (bad input, options or models,
     unwritable or full outputs, interrupts) ends here as one line on stderr: exit 2, or 130 for
     Ctrl-C and 128 + N for a termination signal N (after removing temporary files)."""
-    args_list = _with_command(list(sys.argv[1:] if argv is None else argv))
-    args = build_parser().parse_args(args_list)
-    from densepeds.batch import cmd_batch
+    try:  # building the parser imports modules: Ctrl-C there is one line too
+        args_list = _with_command(list(sys.argv[1:] if argv is None else argv))
+        args = build_parser().parse_args(args_list)
+        from densepeds.batch import cmd_batch
+    except KeyboardInterrupt:
+        sys.stderr.write("densepeds: interrupted\n")
+        return EXIT_INTERRUPT
 
     handlers = {
         "run": _cmd_run,

@@ -29,21 +29,17 @@ impl Line {
     }
 }
 
-/// Result of [`solve`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Solution {
     pub velocity: V2,
     /// False when the half-planes and the disc have no common point; `velocity` then minimises
     /// the largest violation.
     pub feasible: bool,
-    /// When infeasible, the largest violation reached (the min-max level; up to rounding, no
-    /// line is violated by more at `velocity`): appending a line whose violation at
-    /// `velocity` is at most this leaves the solution unchanged, bit for bit. Zero when
-    /// feasible.
+    /// When infeasible, the min-max violation level reached (no line is violated by more at
+    /// `velocity`, up to rounding); zero when feasible.
     pub violation: f64,
 }
 
-/// What the 1-D and 2-D programs optimise.
 #[derive(Clone, Copy)]
 enum Goal {
     /// Get as close as possible to this point.
@@ -85,7 +81,8 @@ fn lp1(lines: &[Line], i: usize, radius: f64, goal: Goal, out: &mut V2) -> bool 
     if disc.is_nan() || disc < 0.0 {
         return false;
     }
-    let (mut lo, mut hi) = (-disc.sqrt(), disc.sqrt());
+    let root = disc.sqrt();
+    let (mut lo, mut hi) = (-root, root);
     for other in &lines[..i] {
         // other.violation(point + t dir) <= 0  <=>  t * denom <= numer.
         let denom = cross(dir, other.dir);
@@ -168,10 +165,8 @@ fn lp3(lines: &[Line], begin: usize, radius: f64, out: &mut V2, projected: &mut 
             }
             let dir = dir / norm;
             let point = if denom.abs() < NEAR_PARALLEL {
-                // Nearly (anti)parallel: the lines cross far away, where a point loses the
-                // bisector's offset to rounding. Take the bisector's point nearest the origin,
-                // from where both violations are equal: cross(e, v) = cross(do, po) -
-                // cross(dl, pl) with e = do - dl.
+                // Nearly (anti)parallel lines cross far away: take the bisector's point nearest
+                // the origin, cross(e, v) = cross(do, po) - cross(dl, pl) with e = do - dl.
                 let c = cross(other.dir, other.point) - cross(line.dir, line.point);
                 (c / norm) * left_normal(dir)
             } else {
