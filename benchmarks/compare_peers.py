@@ -31,6 +31,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import peers  # noqa: E402
 from accuracy_grid import DET_SEQUENCES as DEV_SEQUENCES  # noqa: E402
+from accuracy_grid import parse_params, parse_value  # noqa: E402
 from densepeds import motio  # noqa: E402
 from densepeds.evaluate import evaluate  # noqa: E402
 
@@ -101,25 +102,6 @@ def evaluate_tracker(
             m["ms_median"], m["ms_p95"] = timing[seq_name]
         table[seq_name] = m
     return table
-
-
-def parse_value(text: str) -> object:
-    for kind in (int, float):
-        try:
-            return kind(text)
-        except ValueError:
-            pass
-    return {"true": True, "false": False}.get(text.lower(), text)
-
-
-def parse_params(items: list[str]) -> dict[str, object]:
-    out = {}
-    for item in items:
-        key, sep, value = item.partition("=")
-        if not sep:
-            raise SystemExit(f"--param wants key=value, got {item!r}")
-        out[key] = parse_value(value)
-    return out
 
 
 def results_table(results: dict[str, dict[str, dict[str, float]]], seq_names: list[str]) -> str:
