@@ -253,7 +253,7 @@ def run(
 
 def add_parser(sub: Any) -> argparse.ArgumentParser:
     """Add ``batch`` to the ``densepeds`` command's subparsers."""
-    from densepeds.cli import _tracker_param
+    from densepeds.cli import _add_param_option
 
     p = sub.add_parser(
         "batch",
@@ -272,14 +272,7 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     p.add_argument("--motion", choices=MOTIONS, default="frvo", help="motion model")
     p.add_argument("--features", choices=FEATURES, help="appearance features (as for run)")
     p.add_argument("--frames", metavar="A:B", help="frame range of every input (1-based)")
-    p.add_argument(
-        "--param",
-        metavar="KEY=VALUE",
-        type=_tracker_param,
-        action="append",
-        default=[],
-        help="tracker parameter (repeatable)",
-    )
+    _add_param_option(p)
     p.add_argument("--video", action="store_true", help="also write NAME.mp4 (annotated)")
     p.add_argument(
         "--workers",

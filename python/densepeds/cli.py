@@ -81,6 +81,17 @@ def _presets_help() -> str:
     return "\n".join(lines)
 
 
+def _add_param_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--param",
+        metavar="KEY=VALUE",
+        type=_tracker_param,
+        action="append",
+        default=[],
+        help=PARAM_HELP,
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     from densepeds import __version__
     from densepeds.evaluate import BENCHMARKS, INSTALL_HINT
@@ -151,14 +162,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="tracks output file, MOTChallenge format (default: out/<input name>.txt)",
     )
     run.add_argument("--video", metavar="OUT.mp4", type=Path, help="annotated video output")
-    run.add_argument(
-        "--param",
-        metavar="KEY=VALUE",
-        type=_tracker_param,
-        action="append",
-        default=[],
-        help=PARAM_HELP,
-    )
+    _add_param_option(run)
     run.add_argument("--seed", type=int, default=0, help="built-in scene: random seed")
     run.add_argument("--scene-frames", type=int, default=150, help="built-in scene: frames")
     run.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
@@ -236,14 +240,7 @@ def build_parser() -> argparse.ArgumentParser:
     ab.add_argument("--reid-model", metavar="PATH", help=REID_MODEL_HELP)
     ab.add_argument("--frames", metavar="A:B", help="frame range (gt is cut to match)")
     ab.add_argument("--format", choices=FORMATS, default="md", help=FORMAT_HELP)
-    ab.add_argument(
-        "--param",
-        metavar="KEY=VALUE",
-        type=_tracker_param,
-        action="append",
-        default=[],
-        help=PARAM_HELP,
-    )
+    _add_param_option(ab)
     ab.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
 
     sc = sub.add_parser("scene", help="write the built-in scene as a MOTChallenge sequence")
