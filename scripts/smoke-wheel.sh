@@ -3,8 +3,8 @@
 # built-in scene, the models put into that venv's user cache (fetched from a mirror served on
 # 127.0.0.1, and installed from a file), a real clip (PETS09 frames 1-20 from the video, detector
 # and re-ID) with an annotated video that must be browser-playable (H.264, yuv420p, moov first),
-# and `eval --frames` on it. Needs ../shared (or
-# $DENSEPEDS_SHARED) and a package index for the dependencies.
+# and `eval --frames` on it. Needs ../shared (or $DENSEPEDS_SHARED) and a package index for the
+# dependencies.
 # Usage: scripts/smoke-wheel.sh [WHEEL] (default: the manylinux wheel in target/wheels)
 set -euo pipefail
 REPO=$(cd "$(dirname "$0")/.." && pwd)

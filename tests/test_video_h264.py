@@ -77,8 +77,9 @@ def _backgrounds(n: int) -> list[np.ndarray]:
     return [np.full((121, 161, 3), 30 + 15 * k, np.uint8) for k in range(n)]
 
 
-def test_mp4_is_h264_yuv420p_with_the_index_first(tmp_path: Path) -> None:
-    out = tmp_path / "v.mp4"
+@pytest.mark.parametrize("suffix", [".mp4", ".m4v", ".mov"])
+def test_mp4_is_h264_yuv420p_with_the_index_first(tmp_path: Path, suffix: str) -> None:
+    out = tmp_path / f"v{suffix}"
     images = _backgrounds(12)
     with AnnotatedVideoWriter(out, fps=7) as writer:
         for k, image in enumerate(images):
