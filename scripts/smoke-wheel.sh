@@ -2,8 +2,9 @@
 # Installs the wheel into a fresh venv outside the repo and uses it as a pip user would: the
 # built-in scene, the models put into that venv's user cache (fetched from a mirror served on
 # 127.0.0.1, and installed from a file), a real clip (PETS09 frames 1-20 from the video, detector
-# and re-ID) with an annotated video, and `eval --frames` on it. Needs ../shared (or
-# $DENSEPEDS_SHARED) and a package index for the dependencies.
+# and re-ID) with an annotated video that must be browser-playable (H.264, yuv420p, moov first),
+# and `eval --frames` on it. Needs ../shared (or $DENSEPEDS_SHARED) and a package index for the
+# dependencies.
 # Usage: scripts/smoke-wheel.sh [WHEEL] (default: the manylinux wheel in target/wheels)
 set -euo pipefail
 REPO=$(cd "$(dirname "$0")/.." && pwd)
@@ -60,15 +61,34 @@ grep -q "found: $XDG_CACHE_HOME/densepeds/models/osnet_x0_25_msmt17.onnx" models
 }
 
 step "a real clip: PETS09-S2L1 frames 1-20 from the video, detector + re-ID, annotated video"
-densepeds run "$SHARED/data/PETS09-S2L1-dev/vtest.avi" --frames 1:20 --out pets.txt --video pets.mp4 -q
+densepeds run "$SHARED/data/PETS09-S2L1-dev/vtest.avi" --frames 1:20 --out pets.txt --video pets.mp4 -q 2>run.err ||
+  { cat run.err >&2; exit 1; }
+cat run.err >&2
+grep -q "video codec: H.264 (libx264 through FFmpeg)" run.err || {
+  echo "smoke: the run did not report an H.264 video from FFmpeg" >&2
+  exit 1
+}
+# Browser-playable: H.264 in yuv420p, the index (moov) before the data (mdat), every frame there;
+# checked with OpenCV and with FFmpeg's own description of the stream.
 python - <<'PY'
-import cv2
+import re, subprocess
+import cv2, imageio_ffmpeg
 cap = cv2.VideoCapture("pets.mp4")
 n = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
 fourcc = int(cap.get(cv2.CAP_PROP_FOURCC)).to_bytes(4, "little").decode("ascii", "replace")
+decoded = 0
+while cap.read()[0]:
+    decoded += 1
 cap.release()
-assert n == 20, f"pets.mp4 has {n} frames, expected 20"
-print(f"pets.mp4: {n} frames, codec {fourcc}")
+assert n == decoded == 20, f"pets.mp4 has {n} frames ({decoded} decoded), expected 20"
+assert fourcc.lower() in ("avc1", "h264"), f"pets.mp4 codec {fourcc}, expected H.264"
+info = subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-hide_banner", "-i", "pets.mp4"],
+                      capture_output=True, text=True).stderr
+stream = re.search(r"Video: (.*)", info).group(1)
+assert stream.startswith("h264") and "yuv420p" in stream, f"pets.mp4 stream: {stream}"
+data = open("pets.mp4", "rb").read()
+assert 0 <= data.find(b"moov") < data.find(b"mdat"), "pets.mp4: moov after mdat (no faststart)"
+print(f"pets.mp4: {n} frames, FOURCC {fourcc}; FFmpeg: {stream}")
 PY
 densepeds eval --gt "$SHARED/data/PETS09-S2L1-dev" --tracks pets.txt --frames 1:20 --format csv
 step "ok"

@@ -12,7 +12,7 @@ from conftest import REPO
 
 tomllib = pytest.importorskip("tomllib", reason="needs Python 3.11+ to read pyproject.toml")
 
-CORE = {"numpy", "onnxruntime", "onnx", "opencv-python-headless", "tqdm"}
+CORE = {"numpy", "onnxruntime", "onnx", "opencv-python-headless", "tqdm", "imageio-ffmpeg"}
 
 
 def _name(requirement: str) -> str:

@@ -9,11 +9,9 @@ from __future__ import annotations
 
 import os
 import re
-import sys
 import threading
 from collections import deque
 from collections.abc import Generator, Iterator
-from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 from queue import Full, Queue
@@ -24,8 +22,10 @@ import numpy as np
 import numpy.typing as npt
 
 from densepeds.errors import InputError, OutputError, ParameterError
+from densepeds.video_encoder import CODEC_NAMES, FrameEncoder, open_encoder, quiet_stderr
 
 __all__ = [
+    "CODEC_NAMES",
     "AnnotatedVideoWriter",
     "FrameRange",
     "FrameSource",
@@ -309,16 +309,6 @@ def id_colour(track_id: int) -> tuple[int, int, int]:
     return int(b), int(g), int(r)
 
 
-# Codecs tried for an annotated video, in order, by container. H.264 ("avc1") plays in browsers;
-# OpenCV's own FFmpeg build often lacks an H.264 encoder, then MPEG-4 Part 2 ("mp4v") is used.
-_CODECS = {
-    ".mp4": ("avc1", "mp4v"),
-    ".m4v": ("avc1", "mp4v"),
-    ".mov": ("avc1", "mp4v"),
-}
-_DEFAULT_CODECS = ("MJPG",)
-CODEC_NAMES = {"avc1": "H.264", "mp4v": "MPEG-4 Part 2", "MJPG": "Motion JPEG"}
-
 _LABEL_FONT = cv2.FONT_HERSHEY_SIMPLEX
 _LABEL_SCALE = 0.4
 _LABEL_PAD = 2
@@ -326,35 +316,6 @@ _LABEL_PAD = 2
 _DENSE = 15
 
 Rect = tuple[int, int, int, int]  # x1, y1, x2, y2 (exclusive)
-
-
-@contextmanager
-def _quiet_stderr() -> Iterator[None]:
-    """Silence file descriptor 2 (FFmpeg and OpenCV print there directly) for the block."""
-    try:
-        sys.stderr.flush()
-        saved = os.dup(2)
-    except (OSError, ValueError):
-        yield
-        return
-    try:
-        with open(os.devnull, "wb") as null:
-            os.dup2(null.fileno(), 2)
-            yield
-    finally:
-        os.dup2(saved, 2)
-        os.close(saved)
-
-
-@contextmanager
-def _opencv_log_level(level: int) -> Iterator[None]:
-    """OpenCV's log level lowered to ``level`` (never raised) for the block."""
-    old = cv2.utils.logging.getLogLevel()
-    cv2.utils.logging.setLogLevel(min(old, level))
-    try:
-        yield
-    finally:
-        cv2.utils.logging.setLogLevel(old)
 
 
 def _overlap(a: Rect, b: Rect) -> int:
@@ -425,8 +386,9 @@ class AnnotatedVideoWriter:
     ``close()`` only after it has been read back with every frame (a full disk or a failed write
     raises :class:`~densepeds.errors.OutputError` and leaves nothing under the final name);
     ``abort()`` (and any exception inside a ``with`` block) removes it. The file follows the
-    umask. MP4 output is H.264 where OpenCV's FFmpeg has an encoder for it, else MPEG-4 Part 2:
-    ``codec`` says which was used, and ``note`` explains a fallback.
+    umask. MP4/MOV output is H.264 for browsers where FFmpeg can encode it, else what OpenCV
+    can write (see :mod:`densepeds.video_encoder`): ``codec`` says which was used (a key of
+    ``CODEC_NAMES``), and ``note`` explains a fallback in one line.
     """
 
     path: Path
@@ -435,7 +397,7 @@ class AnnotatedVideoWriter:
     codec: str | None = None
     note: str | None = None
     frames_written: int = 0
-    _writer: cv2.VideoWriter | None = None
+    _writer: FrameEncoder | None = None
     _tmp: Path | None = None
     _size: tuple[int, int] | None = None
     _trails: dict[int, deque[tuple[int, int]]] = field(default_factory=dict)
@@ -445,31 +407,19 @@ class AnnotatedVideoWriter:
         if self.path.suffix.lower() not in VIDEO_EXTS:
             raise ParameterError(f"{self.path}: video output needs a video extension like .mp4")
 
-    def _open(self, width: int, height: int) -> cv2.VideoWriter:
+    def _open(self, width: int, height: int) -> FrameEncoder:
         from densepeds.motio import discard_temp, reserve_temp
 
         self._tmp = reserve_temp(self.path)
-        codecs = _CODECS.get(self.path.suffix.lower(), _DEFAULT_CODECS)
-        for i, codec in enumerate(codecs):
-            fallback = i == len(codecs) - 1
-            # Probing a missing encoder makes FFmpeg print several lines: keep them quiet.
-            with nullcontext() if fallback else _quiet_stderr():
-                writer = cv2.VideoWriter(
-                    str(self._tmp), cv2.VideoWriter.fourcc(*codec), self.fps, (width, height)
-                )
-            if writer.isOpened():
-                self.codec = codec
-                if i > 0:
-                    self.note = (
-                        f"no {CODEC_NAMES[codecs[0]]} encoder in this OpenCV build; "
-                        f"{self.path.name} is {CODEC_NAMES.get(codec, codec)} ({codec}), "
-                        "which browsers may not play"
-                    )
-                self._size = (width, height)
-                return writer
-        discard_temp(self._tmp)
-        self._tmp = None
-        raise OutputError(f"{self.path}: cannot open a video writer ({', '.join(codecs)})")
+        try:
+            encoder = open_encoder(self._tmp, self.path, (width, height), self.fps)
+        except BaseException:
+            discard_temp(self._tmp)
+            self._tmp = None
+            raise
+        self.codec, self.note = encoder.codec, encoder.note
+        self._size = (width, height)
+        return encoder
 
     def write(
         self,
@@ -498,10 +448,7 @@ class AnnotatedVideoWriter:
             canvas, self.frames_written + 1 if frame_no is None else frame_no
         )
         self._draw(canvas, ids_arr, box_arr, counter)
-        # A failed write only logs an OpenCV warning per frame (VideoWriter.write returns
-        # nothing): keep those quiet; close() reads the file back and reports the failure once.
-        with _opencv_log_level(cv2.utils.logging.LOG_LEVEL_ERROR):
-            self._writer.write(canvas)
+        self._writer.write(canvas)
         self.frames_written += 1
 
     @staticmethod
@@ -562,11 +509,11 @@ class AnnotatedVideoWriter:
 
         if self._writer is None:
             return
-        self._writer.release()
-        self._writer = None
+        writer, self._writer = self._writer, None
         tmp, self._tmp = self._tmp, None
         assert tmp is not None
         try:
+            writer.finish()
             readable = _readable_frames(tmp)
         except BaseException:
             discard_temp(tmp)
@@ -584,7 +531,7 @@ class AnnotatedVideoWriter:
         from densepeds.motio import discard_temp
 
         if self._writer is not None:
-            self._writer.release()
+            self._writer.kill()
             self._writer = None
         discard_temp(self._tmp)
         self._tmp = None
@@ -606,7 +553,7 @@ def _readable_frames(path: Path) -> int:
             return 0
     except OSError:
         return 0
-    with _quiet_stderr():
+    with quiet_stderr():
         cap = cv2.VideoCapture(str(path))
         try:
             if not cap.isOpened():
