@@ -181,6 +181,26 @@ def test_builtin_scene(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> No
     assert len(read_tracks(out)) > 1000 and video.stat().st_size > 10_000
 
 
+def test_builtin_scene_without_trackeval_tracks_and_says_it_did_not_score(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The core install (no eval extra) runs the scene, writes tracks, and names what scores."""
+    import importlib.util
+
+    real_find_spec = importlib.util.find_spec
+
+    def no_trackeval(name: str, *args: object, **kwargs: object) -> object:
+        return None if name == "trackeval" else real_find_spec(name, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(importlib.util, "find_spec", no_trackeval)
+    out = tmp_path / "scene.txt"
+    rc, stdout, err = _run(capsys, "run", "--scene-frames", "20", "--out", str(out), "-q")
+    assert rc == 0, err
+    assert "not scored: trackeval is not installed" in stdout and "densepeds[eval]" in stdout
+    assert "| **COMBINED**" not in stdout
+    assert len(read_tracks(out)) > 100
+
+
 def test_scene_command_writes_a_sequence_that_run_and_eval_accept(
     capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:

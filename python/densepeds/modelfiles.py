@@ -66,8 +66,9 @@ MODELS: dict[str, ModelInfo] = {
             licence="MIT (torchreid OSNet architecture and MSMT17 weights)",
             contract="input [N,3,256,128] RGB float, /255 then ImageNet mean/std; output [N,512]",
             source="no published ONNX: torchreid publishes the osnet_x0_25 MSMT17 weights as "
-            "PyTorch only and this file is their ONNX export (models/README.md says how to "
-            "export one)",
+            "PyTorch only and this file is their ONNX export (torch.onnx.export of torchreid's "
+            "osnet_x0_25 in eval mode at [1,3,256,128] with a dynamic batch; an export of your "
+            "own has the contract but not these bytes: pass it with --reid-model PATH)",
             sha256="6cb2ff28786b0bd371c039765c20e642f34dc3c72cbda5d99592f00b519e4fa5",
             size=891579,
         ),
@@ -88,8 +89,9 @@ MODELS: dict[str, ModelInfo] = {
             role="re-ID (--reid-model mars-small128.onnx)",
             licence="GPL-3.0 (nwojke/deep_sort)",
             contract="input [N,128,64,3] uint8 BGR; output [N,128]",
-            source="made locally: convert DeepSORT's mars-small128.pb with tf2onnx "
-            "(models/README.md), then densepeds models install mars-small128.onnx",
+            source="made locally: python -m tf2onnx.convert --graphdef mars-small128.pb "
+            "--inputs images:0 --outputs features:0 --opset 17 --output mars-small128.onnx "
+            "(DeepSORT's graph), then densepeds models install mars-small128.onnx",
         ),
     )
 }
