@@ -1,7 +1,7 @@
 //! Whether reporting a lost track at its prediction pays, learnt online from the sequence itself.
 //!
-//! A confirmed track unmatched for `t` frames (`1 <= t <= output_lost`) can be reported at its
-//! predicted box. That box is a hit when the person is still there, undetected, where the motion
+//! A confirmed track unmatched for `t` frames can be reported at its predicted box (for
+//! `output_lost` frames, or `occluded_output` while it is occluded; the larger is the horizon). That box is a hit when the person is still there, undetected, where the motion
 //! model put them (a detector that misses people now and then, a still camera), and a false
 //! positive when the person is gone or the prediction is off (a detector that misses little, so
 //! an unmatched track mostly means the person left; a moving camera). Which holds depends on the

@@ -377,7 +377,7 @@ impl Tracker {
         }
 
         // Update matched tracks, coast the others, drop the dead.
-        let horizon = p.output_lost;
+        let horizon = p.output_lost.max(p.occluded_output);
         for (i, t) in self.tracks.iter_mut().enumerate() {
             match track_det[i] {
                 Some(j) => {
@@ -440,7 +440,8 @@ impl Tracker {
                     || !p.output_lost_adaptive
                     || self.lost_report.report(t.time_since_update);
                 t.confirmed
-                    && ((t.time_since_update <= p.output_lost && lost_shown)
+                    && lost_shown
+                    && (t.time_since_update <= p.output_lost
                         || (t.occluded && t.time_since_update <= p.occluded_output))
             })
             .map(|t| TrackOutput {
