@@ -90,9 +90,10 @@ output_lost             int    5           0..=4294967295       confirmed tracks
 output_lost_adaptive    bool   False       True|False           report a lost track at gap t
                                                                 (output_lost, occluded_output) only
                                                                 while, on this sequence so far, lost
-                                                                tracks were re-found at their
-                                                                predicted box (IoU >= 0.5) at least
-                                                                as often as not
+                                                                tracks (occluded and in the open
+                                                                counted apart) were re-found at
+                                                                their predicted box (IoU >= 0.5) at
+                                                                least as often as not
 occluded_output         int    10          0..=4294967295       an unmatched track covered by nearer
                                                                 detections is reported up to this
                                                                 many frames; one mostly outside the

@@ -14,6 +14,10 @@
 //! - **otherwise** (matched again away from its prediction, or deleted unmatched): each of them
 //!   counts as a miss.
 //!
+//! The tracker keeps two such counts: for gaps that began with the track occluded (covered by
+//! people nearer the camera, [`crate::occlusion`]) and for gaps that began in the open, since a
+//! hidden person is more likely still there than one who vanished in the open.
+//!
 //! A lost track is reported at gap `t` while hits at `t` are at least as many as misses (a
 //! reported box that is right with probability `p` adds a hit for a miss only where `p >= 1/2`).
 //! With nothing counted yet every gap is reported, as without the adaptation.

@@ -440,7 +440,7 @@ tracker_params! {
         output_lost: u32 = 5, ints(0, U32_MAX),
             "confirmed tracks are also reported, at their prediction, this many frames unmatched";
         output_lost_adaptive: bool = false, Range::Bool,
-            "report a lost track at gap t (output_lost, occluded_output) only while, on this sequence so far, lost tracks were re-found at their predicted box (IoU >= 0.5) at least as often as not";
+            "report a lost track at gap t (output_lost, occluded_output) only while, on this sequence so far, lost tracks (occluded and in the open counted apart) were re-found at their predicted box (IoU >= 0.5) at least as often as not";
         occluded_output: u32 = 10, ints(0, U32_MAX),
             "an unmatched track covered by nearer detections is reported up to this many frames; one mostly outside the image (set_image_size) is deleted (0: off)";
         occlusion_coverage: f64 = 0.5, UNIT,

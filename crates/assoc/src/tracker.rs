@@ -54,8 +54,9 @@ pub struct Tracker {
     image_size: Option<[f64; 2]>,
     /// The scores seen, which place the score thresholds (`score_scale`).
     scores_seen: ScoreScaler,
-    /// How lost tracks' gaps ended, for `output_lost_adaptive`.
-    lost_report: LostReport,
+    /// How lost tracks' gaps ended, for `output_lost_adaptive`: gaps that began in the open
+    /// (`[0]`) and gaps that began occluded (`[1]`), counted apart.
+    lost_report: [LostReport; 2],
 }
 
 impl std::fmt::Debug for Tracker {
@@ -113,7 +114,7 @@ impl Tracker {
             matcher: SparseMatcher::default(),
             image_size: None,
             scores_seen: ScoreScaler::new(),
-            lost_report: LostReport::new(),
+            lost_report: [LostReport::new(), LostReport::new()],
         })
     }
 
@@ -128,7 +129,7 @@ impl Tracker {
         self.frame = 0;
         self.emb_dim = None;
         self.scores_seen.reset();
-        self.lost_report.reset();
+        self.lost_report.iter_mut().for_each(LostReport::reset);
         self.model = make_model(self.params.motion, self.params.motion_params);
     }
 
@@ -382,7 +383,7 @@ impl Tracker {
             match track_det[i] {
                 Some(j) => {
                     if t.confirmed {
-                        self.lost_report.refound(
+                        self.lost_report[usize::from(t.gap_occluded)].refound(
                             t.time_since_update,
                             horizon,
                             &t.predicted,
@@ -407,7 +408,7 @@ impl Tracker {
                 None => !left_image[k] && t.confirmed && t.time_since_update <= p.max_age,
             };
             if !keep && t.confirmed {
-                lost_report.not_refound(t.time_since_update, horizon);
+                lost_report[usize::from(t.gap_occluded)].not_refound(t.time_since_update, horizon);
             }
             k += 1;
             keep
@@ -438,7 +439,7 @@ impl Tracker {
                 let p = &self.params;
                 let lost_shown = t.time_since_update == 0
                     || !p.output_lost_adaptive
-                    || self.lost_report.report(t.time_since_update);
+                    || self.lost_report[usize::from(t.gap_occluded)].report(t.time_since_update);
                 t.confirmed
                     && lost_shown
                     && (t.time_since_update <= p.output_lost

@@ -560,3 +560,41 @@ fn output_lost_adaptive_stops_reporting_tracks_that_never_come_back() {
     // ... walkers that vanish stop being reported once that is what gaps have meant.
     assert_eq!(coasted_reports(true, false), 0);
 }
+
+#[test]
+fn output_lost_adaptive_counts_occluded_gaps_apart() {
+    let mut t = Tracker::new(TrackerParams {
+        n_init: 1,
+        output_lost: 3,
+        output_lost_adaptive: true,
+        occluded_output: 3,
+        max_age: 5,
+        ..cv_params()
+    })
+    .unwrap();
+    // Walkers in the open that vanish for good: gaps in the open stop being reported.
+    for walker in 0..4 {
+        let y = 100.0 + 300.0 * f64::from(walker);
+        for k in 0..6 {
+            run(&mut t, &[bx(100.0 + 4.0 * f64::from(k), y)]);
+        }
+        for _ in 0..8 {
+            run(&mut t, &[]);
+        }
+    }
+    let lost = |out: &[TrackOutput]| out.iter().filter(|o| o.det_index.is_none()).count();
+    for k in 0..6 {
+        run(&mut t, &[bx(500.0 + 4.0 * f64::from(k), 100.0)]);
+    }
+    assert_eq!(lost(&run(&mut t, &[])), 0, "open gap still reported");
+    // A person standing behind a nearer, larger one (lower foot point) goes undetected: that
+    // gap is occluded, and occluded gaps have no record yet, so it is reported.
+    let far = bx(1000.0, 100.0);
+    let near = [970.0, 40.0, 1030.0, 180.0];
+    for _ in 0..6 {
+        run(&mut t, &[far, near]);
+    }
+    for _ in 0..3 {
+        assert_eq!(lost(&run(&mut t, &[near])), 1, "occluded gap not reported");
+    }
+}
