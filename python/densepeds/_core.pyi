@@ -89,6 +89,7 @@ class TrackerKwargs(TypedDict, total=False):
     ellipse_w_scale: float
     output_lost: int
     output_lost_adaptive: bool
+    output_lost_precision: float
     occluded_output: int
     occlusion_coverage: float
     neighbor_radius: float
@@ -136,6 +137,7 @@ class Tracker:
         ellipse_w_scale: float = 0.15,
         output_lost: int = 5,
         output_lost_adaptive: bool = False,
+        output_lost_precision: float = 0.33,
         occluded_output: int = 10,
         occlusion_coverage: float = 0.5,
         neighbor_radius: float = 150.0,

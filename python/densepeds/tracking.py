@@ -94,6 +94,13 @@ output_lost_adaptive    bool   False       True|False           report a lost tr
                                                                 counted apart) were re-found at
                                                                 their predicted box (IoU >= 0.5) at
                                                                 least as often as not
+output_lost_precision   float  0.33        [0, 1]               with output_lost_adaptive: the share
+                                                                of gaps re-found at the prediction
+                                                                needed to report a lost track (a box
+                                                                that is a hit with probability p
+                                                                raises HOTA's DetA where p > DetA /
+                                                                (1 + DetA), 1/3 at DetA 0.5; 0.5 for
+                                                                MOTA)
 occluded_output         int    10          0..=4294967295       an unmatched track covered by nearer
                                                                 detections is reported up to this
                                                                 many frames; one mostly outside the

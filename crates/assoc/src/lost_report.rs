@@ -18,9 +18,11 @@
 //! people nearer the camera, [`crate::occlusion`]) and for gaps that began in the open, since a
 //! hidden person is more likely still there than one who vanished in the open.
 //!
-//! A lost track is reported at gap `t` while hits at `t` are at least as many as misses (a
-//! reported box that is right with probability `p` adds a hit for a miss only where `p >= 1/2`).
-//! With nothing counted yet every gap is reported, as without the adaptation.
+//! A lost track is reported at gap `t` while hits make at least a share `min_precision` of the
+//! gaps counted at `t` (`output_lost_precision`). A reported box that is a hit with probability
+//! `p` adds `p` true positives for `1 - p` false positives: MOTA gains where `p > 1/2`, HOTA's
+//! detection accuracy `DetA = TP / (TP + FN + FP)` where `p > DetA / (1 + DetA)`, 1/3 at
+//! `DetA = 0.5`. With nothing counted yet every gap is reported, as without the adaptation.
 
 use crate::cost::{iou, BBox};
 
@@ -76,12 +78,13 @@ impl LostReport {
     }
 
     /// Whether a track lost for `gap` frames (`>= 1`) is worth reporting.
-    pub fn report(&self, gap: u32) -> bool {
+    pub fn report(&self, gap: u32, min_precision: f64) -> bool {
         let k = gap as usize;
         if k == 0 || k > self.hits.len() {
             return true;
         }
-        self.hits[k - 1] >= self.misses[k - 1]
+        let (h, m) = (self.hits[k - 1] as f64, self.misses[k - 1] as f64);
+        h >= min_precision * (h + m)
     }
 }
 
@@ -95,7 +98,7 @@ mod tests {
     #[test]
     fn reports_while_gaps_end_at_the_prediction() {
         let mut r = LostReport::new();
-        assert!(r.report(1) && r.report(5));
+        assert!(r.report(1, 0.5) && r.report(5, 0.5));
         // Two gaps of 3 re-found where predicted, one gap of 2 re-found elsewhere.
         r.refound(3, 5, &A, &A);
         r.refound(3, 5, &A, &A);
@@ -104,13 +107,20 @@ mod tests {
             (r.hits.clone(), r.misses.clone()),
             (vec![2, 2, 2], vec![1, 1, 0])
         );
-        assert!(r.report(1) && r.report(3));
+        assert!(r.report(1, 0.5) && r.report(3, 0.5));
         // Two tracks that vanish: gaps 1-2 now lean to misses, gap 3 still to hits.
         r.not_refound(2, 5);
         r.not_refound(2, 5);
-        assert!(!r.report(1) && !r.report(2) && r.report(3));
+        assert!(!r.report(1, 0.5) && !r.report(2, 0.5) && r.report(3, 0.5));
+        // Two hits in five at gap 1: reported at a precision of 1/3, not at 1/2.
+        assert!(r.report(1, 0.33) && !r.report(1, 0.5));
+        // Three tracks vanish after 3 frames: gap 3 also at two hits in five.
+        for _ in 0..3 {
+            r.not_refound(3, 5);
+        }
+        assert!(r.report(3, 0.33) && !r.report(3, 0.5) && !r.report(3, 0.41));
         // Unknown gap lengths are reported.
-        assert!(r.report(4));
+        assert!(r.report(4, 0.5));
     }
 
     #[test]

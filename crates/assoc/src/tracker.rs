@@ -439,7 +439,8 @@ impl Tracker {
                 let p = &self.params;
                 let lost_shown = t.time_since_update == 0
                     || !p.output_lost_adaptive
-                    || self.lost_report[usize::from(t.gap_occluded)].report(t.time_since_update);
+                    || self.lost_report[usize::from(t.gap_occluded)]
+                        .report(t.time_since_update, p.output_lost_precision);
                 t.confirmed
                     && lost_shown
                     && (t.time_since_update <= p.output_lost
