@@ -44,6 +44,8 @@ CANDIDATES: dict[str, dict[str, Any]] = {
     "n_init 3": {"n_init": 3},
     "output_lost 0": {"output_lost": 0},
     "output_lost 10": {"output_lost": 10},
+    "output_lost_adaptive": {"output_lost_adaptive": True},
+    "output_lost_adaptive 0.5": {"output_lost_adaptive": True, "output_lost_precision": 0.5},
     "occluded_output 0": {"occluded_output": 0},
     "occluded_output 5": {"occluded_output": 5},
     "occluded_output 60": {"occluded_output": 60},

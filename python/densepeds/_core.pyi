@@ -88,6 +88,8 @@ class TrackerKwargs(TypedDict, total=False):
     ellipse_l_scale: float
     ellipse_w_scale: float
     output_lost: int
+    output_lost_adaptive: bool
+    output_lost_precision: float
     occluded_output: int
     occlusion_coverage: float
     neighbor_radius: float
@@ -134,6 +136,8 @@ class Tracker:
         ellipse_l_scale: float = 0.15,
         ellipse_w_scale: float = 0.15,
         output_lost: int = 5,
+        output_lost_adaptive: bool = False,
+        output_lost_precision: float = 0.33,
         occluded_output: int = 10,
         occlusion_coverage: float = 0.5,
         neighbor_radius: float = 150.0,

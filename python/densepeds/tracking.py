@@ -87,6 +87,20 @@ ellipse_w_scale         float  0.15        (0, inf)             FRVO ellipse ext
 output_lost             int    5           0..=4294967295       confirmed tracks are also reported,
                                                                 at their prediction, this many
                                                                 frames unmatched
+output_lost_adaptive    bool   False       True|False           report a lost track at gap t
+                                                                (output_lost, occluded_output) only
+                                                                while, on this sequence so far, lost
+                                                                tracks (occluded and in the open
+                                                                counted apart) were re-found at
+                                                                their predicted box (IoU >= 0.5) at
+                                                                least as often as not
+output_lost_precision   float  0.33        [0, 1]               with output_lost_adaptive: the share
+                                                                of gaps re-found at the prediction
+                                                                needed to report a lost track (a box
+                                                                that is a hit with probability p
+                                                                raises HOTA's DetA where p > DetA /
+                                                                (1 + DetA), 1/3 at DetA 0.5; 0.5 for
+                                                                MOTA)
 occluded_output         int    10          0..=4294967295       an unmatched track covered by nearer
                                                                 detections is reported up to this
                                                                 many frames; one mostly outside the

@@ -4,6 +4,7 @@
 pub mod cost;
 pub mod error;
 pub mod lap;
+pub mod lost_report;
 pub mod occlusion;
 pub mod params;
 pub mod score_scale;

@@ -34,6 +34,8 @@ pub(crate) struct Track {
     pub time_since_update: u32,
     /// Unmatched this frame and hidden behind people nearer the camera.
     pub occluded: bool,
+    /// Whether the track was occluded in the first frame of its current gap (unmatched run).
+    pub gap_occluded: bool,
     pub score: f64,
     /// Detection matched in the current frame.
     pub det_index: Option<usize>,
@@ -71,6 +73,7 @@ impl Track {
             hits: 1,
             time_since_update: 0,
             occluded: false,
+            gap_occluded: false,
             score,
             det_index: Some(det_index),
             gallery: Gallery::new(gallery_size),
@@ -165,6 +168,9 @@ impl Track {
         self.vel = self.pred_vel;
         self.bbox = self.predicted;
         self.time_since_update += 1;
+        if self.time_since_update == 1 {
+            self.gap_occluded = self.occluded;
+        }
         self.det_index = None;
     }
 

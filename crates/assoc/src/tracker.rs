@@ -14,6 +14,7 @@
 
 use crate::cost::{centre, iou, normalise, validate_boxes, BBox};
 use crate::lap::{Edge, SparseMatcher};
+use crate::lost_report::LostReport;
 use crate::occlusion::{classify, Unmatched};
 use crate::params::TrackerParams;
 use crate::score_scale::ScoreScaler;
@@ -53,6 +54,9 @@ pub struct Tracker {
     image_size: Option<[f64; 2]>,
     /// The scores seen, which place the score thresholds (`score_scale`).
     scores_seen: ScoreScaler,
+    /// How lost tracks' gaps ended, for `output_lost_adaptive`: gaps that began in the open
+    /// (`[0]`) and gaps that began occluded (`[1]`), counted apart.
+    lost_report: [LostReport; 2],
 }
 
 impl std::fmt::Debug for Tracker {
@@ -110,6 +114,7 @@ impl Tracker {
             matcher: SparseMatcher::default(),
             image_size: None,
             scores_seen: ScoreScaler::new(),
+            lost_report: [LostReport::new(), LostReport::new()],
         })
     }
 
@@ -124,6 +129,7 @@ impl Tracker {
         self.frame = 0;
         self.emb_dim = None;
         self.scores_seen.reset();
+        self.lost_report.iter_mut().for_each(LostReport::reset);
         self.model = make_model(self.params.motion, self.params.motion_params);
     }
 
@@ -372,9 +378,18 @@ impl Tracker {
         }
 
         // Update matched tracks, coast the others, drop the dead.
+        let horizon = p.output_lost.max(p.occluded_output);
         for (i, t) in self.tracks.iter_mut().enumerate() {
             match track_det[i] {
                 Some(j) => {
+                    if t.confirmed {
+                        self.lost_report[usize::from(t.gap_occluded)].refound(
+                            t.time_since_update,
+                            horizon,
+                            &t.predicted,
+                            &dets[j],
+                        );
+                    }
                     t.apply_match(j, dets[j], scores[j], frame, emb_row(j), &p);
                     if !t.confirmed && t.hits >= p.n_init {
                         t.confirmed = true;
@@ -386,11 +401,15 @@ impl Tracker {
             }
         }
         let mut k = 0;
+        let lost_report = &mut self.lost_report;
         self.tracks.retain(|t| {
             let keep = match track_det[k] {
                 Some(_) => true,
                 None => !left_image[k] && t.confirmed && t.time_since_update <= p.max_age,
             };
+            if !keep && t.confirmed {
+                lost_report[usize::from(t.gap_occluded)].not_refound(t.time_since_update, horizon);
+            }
             k += 1;
             keep
         });
@@ -418,7 +437,12 @@ impl Tracker {
             .iter()
             .filter(|t| {
                 let p = &self.params;
+                let lost_shown = t.time_since_update == 0
+                    || !p.output_lost_adaptive
+                    || self.lost_report[usize::from(t.gap_occluded)]
+                        .report(t.time_since_update, p.output_lost_precision);
                 t.confirmed
+                    && lost_shown
                     && (t.time_since_update <= p.output_lost
                         || (t.occluded && t.time_since_update <= p.occluded_output))
             })

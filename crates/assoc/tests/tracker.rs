@@ -510,3 +510,91 @@ fn range_scale_reads_thresholds_from_the_detectors_floor() {
     );
     assert_eq!(TrackerParams::pure().score_scale, ScoreScale::Absolute);
 }
+
+/// Walkers at 4 px/frame, one per row, each seen for 6 frames; `missed(k)` frames of each are
+/// then unseen and the walker either comes back where it was heading (`returns`) or is gone for
+/// good. Returns the number of boxes reported at prediction (no detection behind them) over the
+/// last walker's gap.
+fn coasted_reports(adaptive: bool, returns: bool) -> usize {
+    let mut t = Tracker::new(TrackerParams {
+        n_init: 1,
+        output_lost: 3,
+        output_lost_adaptive: adaptive,
+        occluded_output: 0,
+        max_age: 5,
+        ..cv_params()
+    })
+    .unwrap();
+    let mut last = 0;
+    for walker in 0..6 {
+        let y = 100.0 + 300.0 * f64::from(walker);
+        let at = |k: u32| bx(100.0 + 4.0 * f64::from(k), y);
+        for k in 0..6 {
+            run(&mut t, &[at(k)]);
+        }
+        last = 0;
+        for _ in 6..9 {
+            last += run(&mut t, &[])
+                .iter()
+                .filter(|o| o.det_index.is_none())
+                .count();
+        }
+        if returns {
+            run(&mut t, &[at(9)]);
+        }
+        // Long enough for a lost walker to be deleted.
+        for _ in 0..7 {
+            run(&mut t, &[]);
+        }
+    }
+    last
+}
+
+#[test]
+fn output_lost_adaptive_stops_reporting_tracks_that_never_come_back() {
+    // Without the adaptation every lost walker is reported for output_lost frames.
+    assert_eq!(coasted_reports(false, false), 3);
+    assert_eq!(coasted_reports(false, true), 3);
+    // With it: walkers that come back where predicted keep being reported ...
+    assert_eq!(coasted_reports(true, true), 3);
+    // ... walkers that vanish stop being reported once that is what gaps have meant.
+    assert_eq!(coasted_reports(true, false), 0);
+}
+
+#[test]
+fn output_lost_adaptive_counts_occluded_gaps_apart() {
+    let mut t = Tracker::new(TrackerParams {
+        n_init: 1,
+        output_lost: 3,
+        output_lost_adaptive: true,
+        occluded_output: 3,
+        max_age: 5,
+        ..cv_params()
+    })
+    .unwrap();
+    // Walkers in the open that vanish for good: gaps in the open stop being reported.
+    for walker in 0..4 {
+        let y = 100.0 + 300.0 * f64::from(walker);
+        for k in 0..6 {
+            run(&mut t, &[bx(100.0 + 4.0 * f64::from(k), y)]);
+        }
+        for _ in 0..8 {
+            run(&mut t, &[]);
+        }
+    }
+    let lost = |out: &[TrackOutput]| out.iter().filter(|o| o.det_index.is_none()).count();
+    for k in 0..6 {
+        run(&mut t, &[bx(500.0 + 4.0 * f64::from(k), 100.0)]);
+    }
+    assert_eq!(lost(&run(&mut t, &[])), 0, "open gap still reported");
+    // A person standing behind a nearer, larger one (lower foot point) goes undetected: that
+    // gap is occluded, and occluded gaps have no record yet, so it is reported.
+    let far = bx(1000.0, 100.0);
+    let near = [970.0, 40.0, 1030.0, 180.0];
+    for _ in 0..6 {
+        run(&mut t, &[far, near]);
+    }
+    for _ in 0..3 {
+        assert_eq!(lost(&run(&mut t, &[near])), 1, "occluded gap not reported");
+    }
+}
