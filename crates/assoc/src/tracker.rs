@@ -14,7 +14,7 @@
 
 use crate::cost::{centre, iou, normalise, validate_boxes, BBox};
 use crate::lap::{Edge, SparseMatcher};
-use crate::occlusion::{classify, Unmatched};
+use crate::occlusion::{classify, Scene, Unmatched};
 use crate::params::TrackerParams;
 use crate::score_scale::ScoreScaler;
 use crate::track::Track;
@@ -354,10 +354,12 @@ impl Tracker {
         let mut left_image = vec![false; nt];
         if p.occluded_output > 0 {
             // The people seen this frame: detections matched to tracks and confident ones.
-            let scene: Vec<BBox> = (0..n)
-                .filter(|&j| det_track[j].is_some() || high(j))
-                .map(|j| dets[j])
-                .collect();
+            let scene = Scene::new(
+                (0..n)
+                    .filter(|&j| det_track[j].is_some() || high(j))
+                    .map(|j| dets[j])
+                    .collect(),
+            );
             for (i, t) in self.tracks.iter_mut().enumerate() {
                 t.occluded = false;
                 if track_det[i].is_some() || !t.confirmed {
