@@ -12,7 +12,7 @@
 //! classified from the scene ([`crate::occlusion`]): occluded ones keep being predicted among
 //! their neighbours and reported, those that left the image are deleted.
 
-use crate::cost::{centre, iou, normalise, validate_boxes, BBox};
+use crate::cost::{centre, iou, normalise_rows, validate_boxes, BBox};
 use crate::lap::{Edge, SparseMatcher};
 use crate::occlusion::{classify, Scene, Unmatched};
 use crate::params::TrackerParams;
@@ -216,7 +216,7 @@ impl Tracker {
             .collect();
         let emb: Option<(Vec<f32>, usize)> = embeddings.map(|e| {
             let mut data = e.data.to_vec();
-            data.chunks_exact_mut(e.dim).for_each(normalise);
+            normalise_rows(&mut data, e.dim);
             (data, e.dim)
         });
         if let Some((_, d)) = emb {
