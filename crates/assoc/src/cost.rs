@@ -82,6 +82,38 @@ pub fn normalise(v: &mut [f32]) {
         .map(|&x| f64::from(x) * f64::from(x))
         .sum::<f64>()
         .sqrt();
+    scale_to_unit(v, norm);
+}
+
+/// [`normalise`] applied to each row of `data` (row-major, `dim` values a row), with the same
+/// result bit for bit; rows are processed four at a time, so that four sums of squares (each in
+/// its own order, one dependent addition after another) advance together.
+pub fn normalise_rows(data: &mut [f32], dim: usize) {
+    if dim == 0 {
+        return;
+    }
+    let mut quads = data.chunks_exact_mut(4 * dim);
+    for quad in &mut quads {
+        let mut norm = [0.0f64; 4];
+        for k in 0..dim {
+            for (r, n) in norm.iter_mut().enumerate() {
+                let x = f64::from(quad[r * dim + k]);
+                *n += x * x;
+            }
+        }
+        for (row, n) in quad.chunks_exact_mut(dim).zip(norm) {
+            scale_to_unit(row, n.sqrt());
+        }
+    }
+    quads
+        .into_remainder()
+        .chunks_exact_mut(dim)
+        .for_each(normalise);
+}
+
+/// Divides `v` by `norm` (its length); all zeros where the norm is zero or not finite.
+#[inline]
+fn scale_to_unit(v: &mut [f32], norm: f64) {
     if norm > 0.0 && norm.is_finite() {
         let inv = (1.0 / norm) as f32;
         v.iter_mut().for_each(|x| *x *= inv);
@@ -115,10 +147,57 @@ pub fn max_dot(rows: &[f32], e: &[f32]) -> f32 {
     max_dot_lanes(rows, e)
 }
 
+/// [`max_dot_lanes`] in 256-bit registers: the [`DOT_LANES`] partial sums are four vectors, each
+/// lane adding the same products in the same order (a multiply, then an add: no fused
+/// multiply-add, which would round differently), then reduced in [`reduce_lanes`]'s tree.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx")]
 unsafe fn max_dot_avx(rows: &[f32], e: &[f32]) -> f32 {
-    max_dot_lanes(rows, e)
+    use std::arch::x86_64::{
+        __m256, _mm256_add_ps, _mm256_castps256_ps128, _mm256_extractf128_ps, _mm256_loadu_ps,
+        _mm256_mul_ps, _mm256_setzero_ps, _mm_add_ps, _mm_add_ss, _mm_cvtss_f32, _mm_movehl_ps,
+        _mm_shuffle_ps,
+    };
+    const _: () = assert!(DOT_LANES == 32, "four vectors of eight lanes");
+    let d = e.len();
+    if d == 0 {
+        return f32::NEG_INFINITY;
+    }
+    let full = d - d % DOT_LANES;
+    let mut best = f32::NEG_INFINITY;
+    for g in rows.chunks_exact(d) {
+        let mut acc: [__m256; 4] = [_mm256_setzero_ps(); 4];
+        let mut k = 0;
+        while k < full {
+            // SAFETY: k + 32 <= full <= d = g.len() = e.len(), so every load is in bounds.
+            unsafe {
+                for (v, a) in acc.iter_mut().enumerate() {
+                    let x = _mm256_loadu_ps(g.as_ptr().add(k + 8 * v));
+                    let y = _mm256_loadu_ps(e.as_ptr().add(k + 8 * v));
+                    *a = _mm256_add_ps(*a, _mm256_mul_ps(x, y));
+                }
+            }
+            k += DOT_LANES;
+        }
+        // The tree of `reduce_lanes`: lanes k, k + 8, k + 16, k + 24, then halves.
+        let s = _mm256_add_ps(_mm256_add_ps(acc[0], acc[1]), _mm256_add_ps(acc[2], acc[3]));
+        let t = _mm_add_ps(_mm256_castps256_ps128(s), _mm256_extractf128_ps::<1>(s));
+        let u = _mm_add_ps(t, _mm_movehl_ps(t, t));
+        let sum = _mm_cvtss_f32(_mm_add_ss(u, _mm_shuffle_ps::<0b01>(u, u)));
+        let tail: f32 = g[full..].iter().zip(&e[full..]).map(|(x, y)| x * y).sum();
+        best = best.max(sum + tail);
+    }
+    best
+}
+
+/// Sums the [`DOT_LANES`] partial sums as a tree (lanes `k`, `k + 8`, `k + 16` and `k + 24`
+/// first, then halves of eight, four and two): short dependency chains, and the order in which
+/// vector registers reduce.
+#[inline(always)]
+fn reduce_lanes(acc: &[f32; DOT_LANES]) -> f32 {
+    let s: [f32; 8] = std::array::from_fn(|k| (acc[k] + acc[k + 8]) + (acc[k + 16] + acc[k + 24]));
+    let t: [f32; 4] = std::array::from_fn(|k| s[k] + s[k + 4]);
+    (t[0] + t[2]) + (t[1] + t[3])
 }
 
 #[inline(always)]
@@ -151,7 +230,7 @@ fn dot_lanes(a: &[f32], b: &[f32]) -> f32 {
             acc[k] += x[k] * y[k];
         }
     }
-    acc.iter().sum::<f32>() + tail
+    reduce_lanes(&acc) + tail
 }
 
 /// Largest coordinate magnitude a box may have: squares of coordinates (areas, squared
@@ -190,6 +269,30 @@ pub fn validate_boxes(flat: &[f64]) -> Result<usize, crate::TrackError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn normalise_rows_is_normalise_on_each_row_bit_for_bit() {
+        let mut x = 0x1234_5678_9abc_def1u64;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 40) as f32 / (1u64 << 20) as f32 - 8.0
+        };
+        for dim in [1, 3, 512] {
+            for rows in [0, 1, 4, 7, 9] {
+                let mut data: Vec<f32> = (0..dim * rows).map(|_| next()).collect();
+                if rows > 2 {
+                    data[2 * dim..3 * dim].fill(0.0); // a zero row stays zero
+                }
+                let mut want = data.clone();
+                want.chunks_exact_mut(dim).for_each(normalise);
+                normalise_rows(&mut data, dim);
+                let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&data), bits(&want), "dim {dim}, rows {rows}");
+            }
+        }
+    }
 
     #[test]
     fn max_dot_is_the_largest_dot_bit_for_bit_with_and_without_avx() {

@@ -63,12 +63,41 @@ pub fn inside_fraction(b: &BBox, image: [f64; 2]) -> f64 {
     }
 }
 
+/// The boxes seen this frame, sorted by left edge so that the boxes overlapping a target are
+/// found by a range query rather than by testing every box.
+#[derive(Clone, Debug, Default)]
+pub struct Scene {
+    /// Sorted by `x1`.
+    boxes: Vec<BBox>,
+    /// The widest box's width: a box overlapping `[x1, x2]` starts after `x1 - max_width`.
+    max_width: f64,
+}
+
+impl Scene {
+    pub fn new(mut boxes: Vec<BBox>) -> Self {
+        boxes.sort_by(|a, b| a[0].total_cmp(&b[0]));
+        let max_width = boxes.iter().map(|b| b[2] - b[0]).fold(0.0, f64::max);
+        Self { boxes, max_width }
+    }
+
+    /// The boxes whose interior overlaps that of `target`.
+    pub fn overlapping<'a>(&'a self, target: &'a BBox) -> impl Iterator<Item = &'a BBox> + 'a {
+        // Twice the widest width: a margin no rounding of the subtraction can eat into.
+        let from = target[0] - 2.0 * self.max_width;
+        let lo = self.boxes.partition_point(|b| b[0] < from);
+        self.boxes[lo..]
+            .iter()
+            .take_while(|b| b[0] < target[2])
+            .filter(|b| overlaps(b, target))
+    }
+}
+
 /// Classifies an unmatched track from its predicted box, the boxes seen this frame (`scene`:
 /// detections, the track's own excluded by the caller) and the image size when known.
 /// `min_coverage` is the covered fraction from which the track counts as occluded.
 pub fn classify(
     predicted: &BBox,
-    scene: &[BBox],
+    scene: &Scene,
     image: Option<[f64; 2]>,
     min_coverage: f64,
 ) -> Unmatched {
@@ -78,8 +107,8 @@ pub fn classify(
         }
     }
     let front: Vec<BBox> = scene
-        .iter()
-        .filter(|b| nearer(b, predicted) && overlaps(b, predicted))
+        .overlapping(predicted)
+        .filter(|b| nearer(b, predicted))
         .copied()
         .collect();
     if covered_fraction(predicted, &front) >= min_coverage {
@@ -110,23 +139,81 @@ mod tests {
     }
 
     #[test]
+    fn scene_queries_find_exactly_the_overlapping_boxes() {
+        let mut x = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = |scale: f64| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 11) as f64 / (1u64 << 53) as f64 * scale
+        };
+        for n in [0, 1, 5, 200] {
+            let boxes: Vec<BBox> = (0..n)
+                .map(|k| {
+                    // Some zero-width and zero-height boxes, and a few wide ones.
+                    let (x0, y0) = (next(1000.0), next(600.0));
+                    let w = if k % 17 == 0 {
+                        0.0
+                    } else {
+                        next(if k % 5 == 0 { 400.0 } else { 60.0 })
+                    };
+                    let h = if k % 13 == 0 { 0.0 } else { next(150.0) };
+                    [x0, y0, x0 + w, y0 + h]
+                })
+                .collect();
+            let scene = Scene::new(boxes.clone());
+            for _ in 0..300 {
+                let (x0, y0) = (next(1100.0) - 50.0, next(700.0) - 50.0);
+                let target = [x0, y0, x0 + next(120.0), y0 + next(200.0)];
+                let mut want: Vec<[u64; 4]> = boxes
+                    .iter()
+                    .filter(|b| overlaps(b, &target))
+                    .map(|b| b.map(f64::to_bits))
+                    .collect();
+                let mut got: Vec<[u64; 4]> = scene
+                    .overlapping(&target)
+                    .map(|b| b.map(f64::to_bits))
+                    .collect();
+                want.sort_unstable();
+                got.sort_unstable();
+                assert_eq!(got, want, "n {n}, target {target:?}");
+            }
+        }
+    }
+
+    #[test]
     fn a_person_behind_a_nearer_one_is_occluded_and_one_in_front_is_not() {
         // Far person: feet at y = 100; near person: feet at y = 140, a bigger box over it.
         let far = [50.0, 20.0, 80.0, 100.0];
         let near = [40.0, 10.0, 95.0, 140.0];
-        assert_eq!(classify(&far, &[near], None, 0.5), Unmatched::Occluded);
+        assert_eq!(
+            classify(&far, &Scene::new(vec![near]), None, 0.5),
+            Unmatched::Occluded
+        );
         // The near one, unmatched, with the far one in the scene: nothing in front of it.
-        assert_eq!(classify(&near, &[far], None, 0.5), Unmatched::Uncovered);
+        assert_eq!(
+            classify(&near, &Scene::new(vec![far]), None, 0.5),
+            Unmatched::Uncovered
+        );
         // Nobody around.
-        assert_eq!(classify(&far, &[], None, 0.5), Unmatched::Uncovered);
+        assert_eq!(
+            classify(&far, &Scene::new(vec![]), None, 0.5),
+            Unmatched::Uncovered
+        );
     }
 
     #[test]
     fn partly_covered_is_occluded_only_from_the_threshold() {
         let far = [0.0, 0.0, 40.0, 80.0];
         let near = [20.0, 0.0, 80.0, 120.0]; // covers the right half
-        assert_eq!(classify(&far, &[near], None, 0.5), Unmatched::Occluded);
-        assert_eq!(classify(&far, &[near], None, 0.6), Unmatched::Uncovered);
+        assert_eq!(
+            classify(&far, &Scene::new(vec![near]), None, 0.5),
+            Unmatched::Occluded
+        );
+        assert_eq!(
+            classify(&far, &Scene::new(vec![near]), None, 0.6),
+            Unmatched::Uncovered
+        );
     }
 
     #[test]
@@ -135,8 +222,14 @@ mod tests {
         let at_edge = [620.0, 100.0, 660.0, 200.0]; // half inside: still there
         let out = [630.0, 100.0, 670.0, 200.0]; // a quarter inside
         let near = [600.0, 90.0, 700.0, 260.0];
-        assert_eq!(classify(&at_edge, &[near], image, 0.5), Unmatched::Occluded);
-        assert_eq!(classify(&out, &[near], image, 0.5), Unmatched::LeftImage);
+        assert_eq!(
+            classify(&at_edge, &Scene::new(vec![near]), image, 0.5),
+            Unmatched::Occluded
+        );
+        assert_eq!(
+            classify(&out, &Scene::new(vec![near]), image, 0.5),
+            Unmatched::LeftImage
+        );
         assert_eq!(
             inside_fraction(&[-10.0, 0.0, 10.0, 10.0], [640.0, 480.0]),
             0.5

@@ -12,10 +12,10 @@
 //! classified from the scene ([`crate::occlusion`]): occluded ones keep being predicted among
 //! their neighbours and reported, those that left the image are deleted.
 
-use crate::cost::{centre, iou, normalise, validate_boxes, BBox};
+use crate::cost::{centre, iou, normalise_rows, validate_boxes, BBox};
 use crate::lap::{Edge, SparseMatcher};
 use crate::lost_report::LostReport;
-use crate::occlusion::{classify, Unmatched};
+use crate::occlusion::{classify, Scene, Unmatched};
 use crate::params::TrackerParams;
 use crate::score_scale::ScoreScaler;
 use crate::track::Track;
@@ -222,7 +222,7 @@ impl Tracker {
             .collect();
         let emb: Option<(Vec<f32>, usize)> = embeddings.map(|e| {
             let mut data = e.data.to_vec();
-            data.chunks_exact_mut(e.dim).for_each(normalise);
+            normalise_rows(&mut data, e.dim);
             (data, e.dim)
         });
         if let Some((_, d)) = emb {
@@ -360,10 +360,12 @@ impl Tracker {
         let mut left_image = vec![false; nt];
         if p.occluded_output > 0 {
             // The people seen this frame: detections matched to tracks and confident ones.
-            let scene: Vec<BBox> = (0..n)
-                .filter(|&j| det_track[j].is_some() || high(j))
-                .map(|j| dets[j])
-                .collect();
+            let scene = Scene::new(
+                (0..n)
+                    .filter(|&j| det_track[j].is_some() || high(j))
+                    .map(|j| dets[j])
+                    .collect(),
+            );
             for (i, t) in self.tracks.iter_mut().enumerate() {
                 t.occluded = false;
                 if track_det[i].is_some() || !t.confirmed {
