@@ -6,6 +6,8 @@ pub mod error;
 pub mod lap;
 pub mod occlusion;
 pub mod params;
+pub mod perspective;
+mod predict;
 pub mod score_scale;
 mod track;
 pub mod tracker;

@@ -14,8 +14,10 @@
 
 use crate::cost::{centre, iou, normalise, validate_boxes, BBox};
 use crate::lap::{Edge, SparseMatcher};
-use crate::occlusion::{classify, Unmatched};
+use crate::occlusion::{classify, complete, Unmatched};
 use crate::params::TrackerParams;
+use crate::perspective::Perspective;
+use crate::predict::predict;
 use crate::score_scale::ScoreScaler;
 use crate::track::Track;
 use crate::TrackError;
@@ -53,6 +55,8 @@ pub struct Tracker {
     image_size: Option<[f64; 2]>,
     /// The scores seen, which place the score thresholds (`score_scale`).
     scores_seen: ScoreScaler,
+    /// The ground plane seen so far (`ground_plane`).
+    perspective: Perspective,
 }
 
 impl std::fmt::Debug for Tracker {
@@ -110,6 +114,7 @@ impl Tracker {
             matcher: SparseMatcher::default(),
             image_size: None,
             scores_seen: ScoreScaler::new(),
+            perspective: Perspective::new(),
         })
     }
 
@@ -124,6 +129,7 @@ impl Tracker {
         self.frame = 0;
         self.emb_dim = None;
         self.scores_seen.reset();
+        self.perspective = Perspective::new();
         self.model = make_model(self.params.motion, self.params.motion_params);
     }
 
@@ -225,14 +231,8 @@ impl Tracker {
         let emb_row = |j: usize| emb.as_ref().map(|(data, d)| &data[j * d..(j + 1) * d]);
 
         // Predict: all live tracks step together through the motion model.
-        if !self.tracks.is_empty() {
-            let agents: Vec<frvo::Agent> = self.tracks.iter().map(|t| t.agent(&p)).collect();
-            let vels = self.model.step(&agents, 1.0);
-            for (k, t) in self.tracks.iter_mut().enumerate() {
-                let v = vels.get(k).copied().unwrap_or(t.pref_vel);
-                t.set_prediction(v);
-            }
-        }
+        let ground = self.perspective.ground().filter(|_| p.ground_plane);
+        predict(&mut self.tracks, self.model.as_mut(), &p, ground.as_ref());
 
         let high = |j: usize| scores[j] >= p.det_threshold;
         let nt = self.tracks.len();
@@ -375,6 +375,7 @@ impl Tracker {
         for (i, t) in self.tracks.iter_mut().enumerate() {
             match track_det[i] {
                 Some(j) => {
+                    self.perspective.observe(&dets[j]);
                     t.apply_match(j, dets[j], scores[j], frame, emb_row(j), &p);
                     if !t.confirmed && t.hits >= p.n_init {
                         t.confirmed = true;
@@ -430,6 +431,16 @@ impl Tracker {
             })
             .collect();
         out.sort_by_key(|o| o.id);
+        if let Some(g) = self
+            .perspective
+            .ground()
+            .filter(|_| self.params.amodal_boxes)
+        {
+            let seen: Vec<BBox> = out.iter().map(|o| o.bbox).collect();
+            for o in &mut out {
+                o.bbox = complete(&o.bbox, &seen, &g, self.params.occlusion_coverage);
+            }
+        }
         out
     }
 }
