@@ -55,6 +55,10 @@ CANDIDATES: dict[str, dict[str, Any]] = {
     "score_scale rank": {"score_scale": "rank"},
     "score_quantile_floor 0": {"score_quantile_floor": 0.0},
     "score_quantile_floor 0.3": {"score_quantile_floor": 0.3},
+    "coast_damping 0.95": {"coast_damping": 0.95},
+    "amodal_boxes": {"amodal_boxes": True},
+    "ground_plane": {"ground_plane": True},
+    "amodal_boxes + ground_plane": {"amodal_boxes": True, "ground_plane": True},
 }
 # What the package defaults were chosen on: update this where a default is tuned again.
 TUNED_ON = {
@@ -67,6 +71,8 @@ MOTION_ROWS = ("frvo", "rvo", "sf", "cv")
 FEATURE_ROWS = ("segmented", "bbox", "masked_pool", "none")
 VISIBILITY_BINS = ((0.0, 0.25), (0.25, 0.5), (0.5, 0.75), (0.75, 1.01))
 VISIBILITY_CELLS = ("MOT20-01-dev/float", "MOT20-01-dev/int8")
+# Frames since a coasted box's track was last matched: bins (first, last) of the precision table.
+LOST_BINS = ((1, 1), (2, 3), (4, 5), (6, 10), (11, 20), (21, 10**9))
 # MOTChallenge's MOT20 distractor classes: a box on one is neither a hit nor a false positive.
 DISTRACTOR_CLASSES = (2, 6, 7, 8, 12)
 BOOTSTRAP = 10_000
@@ -286,6 +292,7 @@ class VisibilityRecall:
     coasting_rows: int  # output rows not matched to a detection this frame
     coasting_fp: int  # of those, on no ground-truth box (pedestrian or distractor)
     output_fp: int  # all output rows on no ground-truth box
+    coast_by_lost: list[tuple[int, int]]  # per LOST_BINS: (coasting rows, of those on a gt box)
 
 
 def visibility_recall(
@@ -299,6 +306,8 @@ def visibility_recall(
     counts = [0] * len(VISIBILITY_BINS)
     found = {s: [0] * len(VISIBILITY_BINS) for s in ("detector", "fed to the tracker", "tracker")}
     coasting = coasting_fp = output_fp = 0
+    by_lost = [[0, 0] for _ in LOST_BINS]
+    last_matched: dict[int, int] = {}  # track id -> last frame it was matched
     for k in range(1, len(data.dets) + 1):
         g = gt[gt[:, 0] == k]
         ped = g[(g[:, 7] == 1) & (g[:, 6] != 0)]
@@ -324,7 +333,19 @@ def visibility_recall(
         coasting += int(coast.sum())
         coasting_fp += int((coast & ~hit).sum())
         output_fp += int((~hit).sum())
-    return VisibilityRecall(counts, found, coasting, coasting_fp, output_fp)
+        for row, on_gt in zip(out, hit, strict=True):
+            tid = int(row[1])
+            if row[7]:
+                last_matched[tid] = k
+                continue
+            lost = k - last_matched.get(tid, k)
+            for b, (lo, hi) in enumerate(LOST_BINS):
+                if lo <= lost <= hi:
+                    by_lost[b][0] += 1
+                    by_lost[b][1] += int(on_gt)
+    return VisibilityRecall(
+        counts, found, coasting, coasting_fp, output_fp, [(n, h) for n, h in by_lost]
+    )
 
 
 def fed_boxes(data: grid.CellData, config: grid.Config) -> list[npt.NDArray[np.float64]]:
@@ -361,6 +382,23 @@ def visibility_table(found: Mapping[str, VisibilityRecall]) -> list[str]:
         cell, who = key.split(" :: ")
         coast = f"{r.coasting_rows} | {r.coasting_fp}" if who == "densepeds" else "- | -"
         lines.append(f"| {cell} | {who} | {r.output_fp} | {coast} |")
+    lost_head = " | ".join(
+        f"{lo}" if lo == hi else f"{lo}+" if hi > 10**6 else f"{lo}-{hi}" for lo, hi in LOST_BINS
+    )
+    lines += [
+        "",
+        "Coasted boxes by frames since the track's last match: rows, and the share (%) on a "
+        "ground-truth box (IoU >= 0.5, one-to-one with the frame's other output boxes).",
+        "",
+        f"| cell | {lost_head} |",
+        "|---|" + "---:|" * len(LOST_BINS),
+    ]
+    for key, r in found.items():
+        cell, who = key.split(" :: ")
+        if who != "densepeds":
+            continue
+        vals = " | ".join(f"{n}: {100 * h / n:.0f}" if n else "0: -" for n, h in r.coast_by_lost)
+        lines.append(f"| {cell} | {vals} |")
     return lines
 
 
@@ -391,7 +429,12 @@ def _verdict(lo: float, hi: float) -> str:
     return "not separated"
 
 
-def claims_table(motions: Mapping[str, Results], features: Mapping[str, Results]) -> list[str]:
+def claims_table(
+    motions: Mapping[str, Results],
+    features: Mapping[str, Results],
+    ground: Mapping[str, Results] | None = None,
+) -> list[str]:
+    """``ground``: FRVO and CV with ``ground_plane`` on (motion on the ground plane), if run."""
     rng = np.random.default_rng(0)
     lines = [
         "HOTA differences per cell, paired. Sign test: two-sided binomial test on the cells "
@@ -415,6 +458,13 @@ def claims_table(motions: Mapping[str, Results], features: Mapping[str, Results]
             f"| frvo vs {m} | {len(res)} | {w} / {t} / {l_} | {p:.3f} | {mean:+.2f} | "
             f"[{lo:+.2f}, {hi:+.2f}] | {_verdict(lo, hi)} |"
         )
+    if ground:
+        w, t, l_, p, mean, lo, hi = paired(ground["frvo"], ground["cv"], rng)
+        lines.append(
+            f"| frvo vs cv, both on the ground plane (`ground_plane`) | {len(ground['cv'])} | "
+            f"{w} / {t} / {l_} | {p:.3f} | {mean:+.2f} | [{lo:+.2f}, {hi:+.2f}] | "
+            f"{_verdict(lo, hi)} |"
+        )
     lines += [
         "",
         "## Appearance features (video cells, FRVO)",
@@ -431,7 +481,10 @@ def claims_table(motions: Mapping[str, Results], features: Mapping[str, Results]
             f"| segmented vs {f} | {len(res)} | {w} / {t} / {l_} | {p:.3f} | {mean:+.2f} | "
             f"[{lo:+.2f}, {hi:+.2f}] | {_verdict(lo, hi)} |"
         )
-    for title, group in (("motion model", motions), ("features", features)):
+    groups = [("motion model", motions), ("features", features)]
+    if ground:
+        groups.insert(1, ("motion model on the ground plane", ground))
+    for title, group in groups:
         cells = list(next(iter(group.values())))
         lines += [
             "",
@@ -615,6 +668,10 @@ def write_all(
         motions = {"frvo": default}
         for m in MOTION_ROWS[1:]:
             motions[m] = _run(data, replace(ours, motion=m))
+        ground: dict[str, Results] = {}
+        if _known({"ground_plane": True}):
+            for m in ("frvo", "cv"):
+                ground[m] = _run(data, replace(ours, motion=m, params={"ground_plane": True}))
         videos = [d for d in data if d.cell.full_pipeline]
         features = {"segmented": {c: default[c] for c in (d.cell.name for d in videos)}}
         for f in FEATURE_ROWS[1:]:
@@ -629,7 +686,7 @@ def write_all(
                 "outside the mask) against the plain box (`bbox`), mask-weighted pooling "
                 "(`masked_pool`) and no appearance (`none`).",
             )
-            + claims_table(motions, features),
+            + claims_table(motions, features, ground),
         )
 
     if "scene" in tables:

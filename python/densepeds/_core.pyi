@@ -92,6 +92,9 @@ class TrackerKwargs(TypedDict, total=False):
     output_lost_precision: float
     occluded_output: int
     occlusion_coverage: float
+    coast_damping: float
+    amodal_boxes: bool
+    ground_plane: bool
     neighbor_radius: float
     max_neighbors: int
     time_horizon: float
@@ -140,6 +143,9 @@ class Tracker:
         output_lost_precision: float = 0.33,
         occluded_output: int = 10,
         occlusion_coverage: float = 0.5,
+        coast_damping: float = 1.0,
+        amodal_boxes: bool = False,
+        ground_plane: bool = False,
         neighbor_radius: float = 150.0,
         max_neighbors: int = 10,
         time_horizon: float = 5.0,

@@ -109,6 +109,22 @@ occluded_output         int    10          0..=4294967295       an unmatched tra
 occlusion_coverage      float  0.5         [0, 1]               covered fraction of an unmatched
                                                                 track's predicted box that means
                                                                 occluded
+coast_damping           float  1.0         [0, 1]               an unmatched track's preferred
+                                                                velocity is multiplied by this for
+                                                                every frame it stays unmatched (1:
+                                                                kept)
+amodal_boxes            bool   False       True|False           a reported box whose lower part is
+                                                                hidden behind a nearer reported box
+                                                                is extended down to the height the
+                                                                fitted perspective expects from its
+                                                                top row (the whole person, as
+                                                                MOTChallenge annotates)
+ground_plane            bool   False       True|False           motion on the ground: the motion
+                                                                model steps feet in ground
+                                                                coordinates from a perspective
+                                                                fitted online (box height vs foot
+                                                                row), boxes scale with depth; image
+                                                                space until a fit holds
 neighbor_radius         float  150.0       (0, inf)             motion model: only agents closer
                                                                 than this (pixels) constrain each
                                                                 other

@@ -7,6 +7,8 @@ pub mod lap;
 pub mod lost_report;
 pub mod occlusion;
 pub mod params;
+pub mod perspective;
+mod predict;
 pub mod score_scale;
 mod track;
 pub mod tracker;

@@ -7,6 +7,7 @@
 //! one whose feet are lower stands nearer.
 
 use crate::cost::{area, BBox};
+use crate::perspective::GroundMap;
 
 /// What the scene says about a track that was not matched this frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -118,6 +119,32 @@ pub fn classify(
     }
 }
 
+/// The whole person behind a box whose lower part is hidden: where the perspective expects a
+/// taller person from the box's top row and the missing part below the box is covered (at least
+/// `min_coverage`) by boxes of `scene` nearer the camera than that full box, the box is extended
+/// down to the full height; otherwise it is returned as is (never shrunk).
+pub fn complete(b: &BBox, scene: &[BBox], ground: &GroundMap, min_coverage: f64) -> BBox {
+    let Some(h) = ground.height_from_top(b[1]) else {
+        return *b;
+    };
+    let bottom = b[1] + h;
+    if bottom <= b[3] {
+        return *b;
+    }
+    let full = [b[0], b[1], b[2], bottom];
+    let missing = [b[0], b[3], b[2], bottom];
+    let front: Vec<BBox> = scene
+        .iter()
+        .filter(|o| nearer(o, &full) && overlaps(o, &missing))
+        .copied()
+        .collect();
+    if covered_fraction(&missing, &front) >= min_coverage {
+        full
+    } else {
+        *b
+    }
+}
+
 #[inline]
 fn overlaps(a: &BBox, b: &BBox) -> bool {
     a[0] < b[2] && b[0] < a[2] && a[1] < b[3] && b[1] < a[3]
@@ -214,6 +241,31 @@ mod tests {
             classify(&far, &Scene::new(vec![near]), None, 0.6),
             Unmatched::Uncovered
         );
+    }
+
+    #[test]
+    fn a_box_cut_by_a_nearer_person_is_completed_to_the_expected_height() {
+        // Horizon at row 0, people 0.5 x their depth below it: h = k (y_foot - 0), k = 0.5.
+        let ground = GroundMap {
+            k: 0.5,
+            x0: 0.0,
+            horizon: 0.0,
+            y_ref: 200.0,
+        };
+        // A head at row 100: full height 100 (feet at 200). Only the top 60 px were seen.
+        let cut = [50.0, 100.0, 90.0, 160.0];
+        let near = [30.0, 120.0, 110.0, 280.0];
+        assert_eq!(
+            complete(&cut, &[near], &ground, 0.5),
+            [50.0, 100.0, 90.0, 200.0]
+        );
+        // Nobody in front of the missing part: as seen.
+        assert_eq!(complete(&cut, &[], &ground, 0.5), cut);
+        let far = [30.0, 120.0, 110.0, 190.0]; // feet above the full box's feet: behind it
+        assert_eq!(complete(&cut, &[far], &ground, 0.5), cut);
+        // Already as tall as expected: never shrunk.
+        let whole = [50.0, 100.0, 90.0, 215.0];
+        assert_eq!(complete(&whole, &[near], &ground, 0.5), whole);
     }
 
     #[test]

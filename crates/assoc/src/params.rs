@@ -447,6 +447,12 @@ tracker_params! {
             "an unmatched track covered by nearer detections is reported up to this many frames; one mostly outside the image (set_image_size) is deleted (0: off)";
         occlusion_coverage: f64 = 0.5, UNIT,
             "covered fraction of an unmatched track's predicted box that means occluded";
+        coast_damping: f64 = 1.0, UNIT,
+            "an unmatched track's preferred velocity is multiplied by this for every frame it stays unmatched (1: kept)";
+        amodal_boxes: bool = false, Range::Bool,
+            "a reported box whose lower part is hidden behind a nearer reported box is extended down to the height the fitted perspective expects from its top row (the whole person, as MOTChallenge annotates)";
+        ground_plane: bool = false, Range::Bool,
+            "motion on the ground: the motion model steps feet in ground coordinates from a perspective fitted online (box height vs foot row), boxes scale with depth; image space until a fit holds";
     }
     motion {
         neighbor_radius: f64, POSITIVE,

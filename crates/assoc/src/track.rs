@@ -7,6 +7,7 @@
 
 use crate::cost::{box_from_centre, centre, max_dot, normalise, BBox};
 use crate::params::TrackerParams;
+use crate::perspective::GroundMap;
 use nalgebra::Vector2;
 use std::collections::VecDeque;
 
@@ -25,11 +26,14 @@ pub(crate) struct Track {
     pub bbox: BBox,
     /// This frame's prediction: velocity from the motion model and the box it leads to.
     pub pred_vel: Vector2<f64>,
+    /// This frame's predicted box size over the current one (1 in image space).
+    pub pred_scale: f64,
     pub predicted: BBox,
     pub last_obs: BBox,
     pub last_obs_frame: u64,
-    /// Recent matched centres `(frame, centre)`, for the preferred velocity.
-    history: VecDeque<(u64, Vector2<f64>)>,
+    /// Recent matched centres and foot rows `(frame, centre, foot y)`, for the preferred
+    /// velocity.
+    history: VecDeque<(u64, Vector2<f64>, f64)>,
     pub hits: u32,
     pub time_since_update: u32,
     /// Unmatched this frame and hidden behind people nearer the camera.
@@ -66,10 +70,11 @@ impl Track {
             h: bbox[3] - bbox[1],
             bbox,
             pred_vel: Vector2::zeros(),
+            pred_scale: 1.0,
             predicted: bbox,
             last_obs: bbox,
             last_obs_frame: frame,
-            history: VecDeque::from([(frame, c)]),
+            history: VecDeque::from([(frame, c, bbox[3])]),
             hits: 1,
             time_since_update: 0,
             occluded: false,
@@ -84,25 +89,50 @@ impl Track {
         t
     }
 
+    /// The track as a motion-model agent. While unmatched, its preferred velocity decays by
+    /// `coast_damping` per frame lost.
     pub fn agent(&self, p: &TrackerParams) -> frvo::Agent {
+        let damping = p
+            .coast_damping
+            .powi(self.time_since_update.min(1 << 20) as i32);
         frvo::Agent::new(
             self.pos,
             self.vel,
-            self.pref_vel,
+            self.pref_vel * damping,
             p.ellipse_l_scale * self.h,
             p.ellipse_w_scale * self.w,
         )
     }
 
-    /// Stores this frame's prediction from the motion model's velocity.
-    pub fn set_prediction(&mut self, v: Vector2<f64>) {
-        self.pred_vel = if v.iter().all(|x| x.is_finite()) {
-            v
+    /// The preferred velocity on the ground: the mean ground velocity of the matched feet in
+    /// the history (the image one's ground image at the current foot when there is one entry).
+    pub fn ground_pref_vel(&self, g: &GroundMap, p: &TrackerParams) -> Vector2<f64> {
+        let damping = p
+            .coast_damping
+            .powi(self.time_since_update.min(1 << 20) as i32);
+        let foot = |c: Vector2<f64>, y: f64| g.to_ground(Vector2::new(c.x, y));
+        let (f0, c0, y0) = self.history[0];
+        let (f1, c1, y1) = self.history[self.history.len() - 1];
+        let v = if f1 > f0 {
+            (foot(c1, y1) - foot(c0, y0)) / (f1 - f0) as f64
         } else {
-            Vector2::zeros()
+            g.jacobian(self.pos + Vector2::new(0.0, 0.5 * self.h)) * self.pref_vel
+        };
+        v * damping
+    }
+
+    /// Stores this frame's prediction: the centre's velocity and the box's change of size
+    /// (non-finite values: no motion, no change).
+    pub fn set_prediction(&mut self, v: Vector2<f64>, scale: f64) {
+        let finite = v.iter().all(|x| x.is_finite()) && scale.is_finite() && scale > 0.0;
+        (self.pred_vel, self.pred_scale) = if finite {
+            (v, scale)
+        } else {
+            (Vector2::zeros(), 1.0)
         };
         let c = self.pos + self.pred_vel;
-        self.predicted = box_from_centre([c.x, c.y], self.w, self.h);
+        let s = self.pred_scale;
+        self.predicted = box_from_centre([c.x, c.y], s * self.w, s * self.h);
     }
 
     pub fn predicted_centre(&self) -> [f64; 2] {
@@ -129,11 +159,11 @@ impl Track {
         } else {
             observed * p.velocity_smoothing + self.vel * (1.0 - p.velocity_smoothing)
         };
-        self.history.push_back((frame, c));
+        self.history.push_back((frame, c, det[3]));
         while self.history.len() > p.pref_window + 1 {
             self.history.pop_front();
         }
-        let (f0, c0) = self.history[0];
+        let (f0, c0, _) = self.history[0];
         self.pref_vel = if frame > f0 {
             (c - c0) / (frame - f0) as f64
         } else {
@@ -166,6 +196,8 @@ impl Track {
     pub fn coast(&mut self) {
         self.pos += self.pred_vel;
         self.vel = self.pred_vel;
+        self.w *= self.pred_scale;
+        self.h *= self.pred_scale;
         self.bbox = self.predicted;
         self.time_since_update += 1;
         if self.time_since_update == 1 {

@@ -15,8 +15,10 @@
 use crate::cost::{centre, iou, normalise_rows, validate_boxes, BBox};
 use crate::lap::{Edge, SparseMatcher};
 use crate::lost_report::LostReport;
-use crate::occlusion::{classify, Scene, Unmatched};
+use crate::occlusion::{classify, complete, Scene, Unmatched};
 use crate::params::TrackerParams;
+use crate::perspective::Perspective;
+use crate::predict::predict;
 use crate::score_scale::ScoreScaler;
 use crate::track::Track;
 use crate::TrackError;
@@ -57,6 +59,8 @@ pub struct Tracker {
     /// How lost tracks' gaps ended, for `output_lost_adaptive`: gaps that began in the open
     /// (`[0]`) and gaps that began occluded (`[1]`), counted apart.
     lost_report: [LostReport; 2],
+    /// The ground plane seen so far (`ground_plane`).
+    perspective: Perspective,
 }
 
 impl std::fmt::Debug for Tracker {
@@ -115,6 +119,7 @@ impl Tracker {
             image_size: None,
             scores_seen: ScoreScaler::new(),
             lost_report: [LostReport::new(), LostReport::new()],
+            perspective: Perspective::new(),
         })
     }
 
@@ -130,6 +135,7 @@ impl Tracker {
         self.emb_dim = None;
         self.scores_seen.reset();
         self.lost_report.iter_mut().for_each(LostReport::reset);
+        self.perspective = Perspective::new();
         self.model = make_model(self.params.motion, self.params.motion_params);
     }
 
@@ -231,14 +237,8 @@ impl Tracker {
         let emb_row = |j: usize| emb.as_ref().map(|(data, d)| &data[j * d..(j + 1) * d]);
 
         // Predict: all live tracks step together through the motion model.
-        if !self.tracks.is_empty() {
-            let agents: Vec<frvo::Agent> = self.tracks.iter().map(|t| t.agent(&p)).collect();
-            let vels = self.model.step(&agents, 1.0);
-            for (k, t) in self.tracks.iter_mut().enumerate() {
-                let v = vels.get(k).copied().unwrap_or(t.pref_vel);
-                t.set_prediction(v);
-            }
-        }
+        let ground = self.perspective.ground().filter(|_| p.ground_plane);
+        predict(&mut self.tracks, self.model.as_mut(), &p, ground.as_ref());
 
         let high = |j: usize| scores[j] >= p.det_threshold;
         let nt = self.tracks.len();
@@ -392,6 +392,7 @@ impl Tracker {
                             &dets[j],
                         );
                     }
+                    self.perspective.observe(&dets[j]);
                     t.apply_match(j, dets[j], scores[j], frame, emb_row(j), &p);
                     if !t.confirmed && t.hits >= p.n_init {
                         t.confirmed = true;
@@ -456,6 +457,16 @@ impl Tracker {
             })
             .collect();
         out.sort_by_key(|o| o.id);
+        if let Some(g) = self
+            .perspective
+            .ground()
+            .filter(|_| self.params.amodal_boxes)
+        {
+            let seen: Vec<BBox> = out.iter().map(|o| o.bbox).collect();
+            for o in &mut out {
+                o.bbox = complete(&o.bbox, &seen, &g, self.params.occlusion_coverage);
+            }
+        }
         out
     }
 }
