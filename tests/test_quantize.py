@@ -51,34 +51,50 @@ def test_the_copy_runs_integer_convolutions_and_records_its_source(
     path = folder / quantize.quantized_file_name(YOLO.file)
     model = onnx.load(str(path))
     inits = {i.name: i for i in model.graph.initializer}
-    int8_weights = [
-        n
-        for n in model.graph.node
-        if n.op_type == "DequantizeLinear"
-        and n.input[0] in inits
-        and inits[n.input[0]].data_type == onnx.TensorProto.INT8
-    ]
-    convs = sum(n.op_type == "Conv" for n in model.graph.node)
-    # Every feature convolution has int8 weights; the head's decoding stays float.
-    assert len(int8_weights) >= convs - 2 > 60
+    producer = {o: n for n in model.graph.node for o in n.output}
+
+    def int8_weight(conv: onnx.NodeProto) -> bool:
+        dq = producer.get(conv.input[1])
+        return (
+            dq is not None
+            and dq.op_type == "DequantizeLinear"
+            and inits[dq.input[0]].data_type == onnx.TensorProto.INT8
+        )
+
+    convs = [n for n in model.graph.node if n.op_type == "Conv"]
+    integer = {n.name for n in convs if int8_weight(n)}
+    # The body's convolutions have int8 weights; the head's and the first one stay float.
+    float_copy = quantize.float_copy(shared_path("models", YOLO.file))
+    by_name = {n.name: n for n in float_copy.graph.node}
+    left = {n for n in quantize.float_nodes(float_copy) if by_name[n].op_type == "Conv"}
+    assert len(convs) == sum(n.op_type == "Conv" for n in float_copy.graph.node)
+    assert integer == {n.name for n in convs} - left and len(integer) > 50
     meta = quantize.metadata(path)
     assert meta[quantize.META_SOURCE] == sha256_of(shared_path("models", YOLO.file))
     assert "vtest.avi frames 700:712 every 6; 3 frames" in meta[quantize.META_CALIBRATION]
 
 
-def test_head_nodes_are_the_decoding_only() -> None:
+def test_float_nodes_are_the_head_and_the_first_convolution() -> None:
     model = quantize.float_copy(shared_path("models", YOLO.file))
-    head = set(quantize.head_nodes(model))
+    kept = quantize.float_nodes(model)
     by_name = {n.name: n for n in model.graph.node}
-    kinds = sorted({by_name[n].op_type for n in head})
-    assert "Softmax" in kinds and "Concat" in kinds
-    # The walk stopped at the feature convolutions: none of the activations feeding them is in.
     producer = {o: n for n in model.graph.node for o in n.output}
-    for name in head:
-        node = by_name[name]
-        if node.op_type == "Conv":
-            assert producer[node.input[0]].op_type not in ("Mul", "Relu")
-    assert len(head) < len(model.graph.node) // 5
+    convs = [n for n in model.graph.node if n.op_type == "Conv"]
+    assert convs[0].name in kept
+    # Every output is computed from float nodes back to a convolution fed by an activation.
+    stack = [o.name for o in model.graph.output]
+    while stack:
+        node = producer.get(stack.pop())
+        if node is None:
+            continue
+        assert node.name in kept, node.name
+        if node.op_type == "Conv" and producer[node.input[0]].op_type == "Mul":
+            continue
+        stack.extend(node.input)
+    kinds = {by_name[n].op_type for n in kept}
+    assert {"Softmax", "Concat", "Sigmoid", "Conv"} <= kinds
+    # The body stays integer: few of the convolutions are left out.
+    assert sum(by_name[n].op_type == "Conv" for n in kept) < len(convs) // 4
 
 
 def test_the_copy_finds_the_float_copys_people(made: tuple[Path, Path]) -> None:

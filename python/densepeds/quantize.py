@@ -10,9 +10,9 @@ quantises that float copy again, this time in a form onnxruntime does fuse:
    optimisation);
 3. ``onnxruntime.quantization.quantize_static``: unsigned 8-bit activations, signed 8-bit
    weights per output channel (U8S8), min/max calibration on the letterboxed tiles of the
-   frames given, QDQ format by default. The head's decoding (box distribution, score sigmoid,
-   the final concatenations, the prototype activation: :func:`head_nodes`) stays float: one
-   8-bit scale shared by boxes, scores and mask coefficients lost people.
+   frames given, QDQ format by default. The head (its output convolutions, the box
+   distribution, score sigmoid, final concatenations and prototype activation) and the first
+   convolution stay float (:func:`float_nodes`): quantised, they cost tracking accuracy.
 
 The result records where it came from in its metadata (:data:`META_SOURCE` and the others): the
 source model's sha256, the calibration frames, the format and onnxruntime's version. The same
@@ -74,13 +74,13 @@ def float_copy(path: Path) -> onnx.ModelProto:
     return onnxutil.with_dynamic_batch(model) if onnxutil.has_fixed_batch(model) else model
 
 
-def head_nodes(model: onnx.ModelProto) -> list[str]:
-    """Names of the nodes between the last feature convolutions and the outputs.
+def float_nodes(model: onnx.ModelProto) -> list[str]:
+    """Names of the nodes left in float: the head and the first convolution.
 
-    Walks back from the graph outputs and stops at a convolution fed by an activation (a
-    feature convolution); what it passes (reshapes, concatenations, the box distribution's
-    softmax and its fixed convolution, the score sigmoid, the prototype activation) is the
-    head's decoding, left in float.
+    The head is found by walking back from the graph outputs to the convolutions fed by an
+    activation (the head's output convolutions, included): the reshapes, concatenations, the
+    box distribution's softmax and its fixed convolution, the score sigmoid and the prototype
+    activation. The first convolution takes the image.
     """
     producer = {out: node for node in model.graph.node for out in node.output}
     seen: set[int] = set()
@@ -91,13 +91,13 @@ def head_nodes(model: onnx.ModelProto) -> list[str]:
         if node is None or id(node) in seen:
             continue
         seen.add(id(node))
-        feeder = producer.get(node.input[0]) if node.input else None
-        if node.op_type == "Conv" and feeder is not None and feeder.op_type in ("Mul", "Relu"):
-            continue
         names.append(node.name)
-        stack.extend(node.input)
+        feeder = producer.get(node.input[0]) if node.input else None
+        if node.op_type != "Conv" or feeder is None or feeder.op_type not in ("Mul", "Relu"):
+            stack.extend(node.input)
+    names += [n.name for n in model.graph.node if n.op_type == "Conv"][:1]
     if any(not name for name in names):
-        raise ModelError("the model's head has unnamed nodes; cannot leave them out by name")
+        raise ModelError("the model has unnamed nodes; cannot leave them out by name")
     return names
 
 
@@ -207,7 +207,7 @@ def quantize_detector(
             activation_type=QuantType.QUInt8,
             weight_type=QuantType.QInt8,
             calibrate_method=CalibrationMethod.MinMax,
-            nodes_to_exclude=head_nodes(pre),
+            nodes_to_exclude=float_nodes(pre),
         )
         if reader.count == 0:
             raise ParameterError("no calibration frames were read (check the frame ranges)")

@@ -72,8 +72,12 @@ class YoloSegDetector:
     model is left as it is): about 2x faster here (onnxruntime cannot fuse this export's QDQ
     pattern into integer kernels), and its scores separate people from clutter better, which
     the pipeline's tracker preset relies on; ``dequantize=False`` runs the graph as shipped.
-    benchmarks/results/realvideo.md and speed.md have the figures. A frame too small for tiles
-    is always seen whole.
+    benchmarks/results/realvideo.md and speed.md have the figures. ``quantized`` chooses the
+    int8 copy made for this CPU by ``densepeds models quantize`` (:func:`choose_model`): None
+    (default) runs it where one made from ``model`` is beside it or in the model folders, True
+    requires it, False never runs it; ``path`` is the file run, ``quantized`` (attribute)
+    whether it is such a copy (benchmarks/results/int8.md has its speed and accuracy). A frame
+    too small for tiles is always seen whole.
     """
 
     def __init__(
