@@ -16,10 +16,11 @@ from densepeds.boxes import iou_matrix
 from densepeds.cli import main
 from densepeds.detect.yoloseg import YoloSegDetector, choose_model
 from densepeds.errors import ModelError
-from densepeds.modelfiles import ENV_VAR, MODELS, sha256_of
+from densepeds.modelfiles import ENV_VAR, MODELS, quantized_file_name, sha256_of
 from densepeds.video import open_source, parse_frame_range
 
 YOLO = MODELS["yoloseg"]
+INT8 = MODELS["yoloseg-int8"]
 # PETS09-S2L1 frames after the dev range (1-397) the accuracy grid scores.
 CALIBRATION = "@700:712/6"  # frames 700, 706, 712; the check runs on 701, 707
 
@@ -34,7 +35,7 @@ def made(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     assert rc == 0
     folder = tmp_path_factory.mktemp("models")
     shutil.copyfile(model, folder / model.name)
-    name = quantize.quantized_file_name(model)
+    name = quantized_file_name(model)
     shutil.copyfile(out / name, folder / name)
     return folder, out
 
@@ -48,7 +49,7 @@ def test_the_copy_runs_integer_convolutions_and_records_its_source(
     made: tuple[Path, Path],
 ) -> None:
     folder, _ = made
-    path = folder / quantize.quantized_file_name(YOLO.file)
+    path = folder / quantized_file_name(YOLO.file)
     model = onnx.load(str(path))
     inits = {i.name: i for i in model.graph.initializer}
     producer = {o: n for n in model.graph.node for o in n.output}
@@ -102,7 +103,7 @@ def test_the_copy_finds_the_float_copys_people(made: tuple[Path, Path]) -> None:
     model = folder / YOLO.file
     ref = YoloSegDetector(model, quantized=False)
     low = YoloSegDetector(model)  # finds the copy beside the model
-    assert low.quantized and low.path.name == quantize.quantized_file_name(model)
+    assert low.quantized and low.path.name == quantized_file_name(model)
     assert not ref.quantized
     for number in (50, 300, 701):  # none of them calibrated on
         frame = _frame(number)
@@ -121,7 +122,7 @@ def test_same_inputs_give_the_same_file(made: tuple[Path, Path], tmp_path: Path)
     again = quantize.quantize_detector(
         model, tmp_path / "again.onnx", [quantize.parse_calibration(f"{video}{CALIBRATION}")]
     )
-    assert sha256_of(again) == sha256_of(out / quantize.quantized_file_name(model))
+    assert sha256_of(again) == sha256_of(out / quantized_file_name(model))
 
 
 def test_choice_of_model(
@@ -129,7 +130,7 @@ def test_choice_of_model(
 ) -> None:
     folder, out = made
     model = shared_path("models", YOLO.file)
-    copy = quantize.quantized_file_name(model)
+    copy = quantized_file_name(model)
     lonely = tmp_path / "alone"
     lonely.mkdir()
     shutil.copyfile(model, lonely / model.name)
@@ -151,9 +152,21 @@ def test_choice_of_model(
     changed = onnx.load(str(model))
     onnx.helper.set_model_props(changed, {"note": "another model"})
     onnx.save(changed, str(other / "yolo.onnx"))
-    shutil.copyfile(out / copy, other / quantize.quantized_file_name("yolo.onnx"))
+    shutil.copyfile(out / copy, other / quantized_file_name("yolo.onnx"))
     with pytest.raises(ModelError, match="not made from"):
         choose_model(other / "yolo.onnx", None)
+
+
+def test_the_listing_finds_the_copy(
+    made: tuple[Path, Path], monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    _, out = made
+    monkeypatch.setenv(ENV_VAR, str(out))
+    assert main(["models"]) == 0
+    listing = capsys.readouterr().out
+    assert f"{INT8.name}: {INT8.file}" in listing
+    assert f"found: {out / quantized_file_name(YOLO.file)}" in listing
+    assert "densepeds models quantize --calibrate VIDEO" in listing
 
 
 def test_failed_check_writes_nothing(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

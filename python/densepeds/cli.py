@@ -679,7 +679,7 @@ def _cmd_quantize(args: argparse.Namespace) -> int:
 
     model = modelfiles.find_model(DEFAULT_MODELS["yoloseg"], args.model)
     inputs = [quantize.parse_calibration(c) for c in args.calibrate]
-    dest = (args.dir or modelfiles.cache_dir()) / quantize.quantized_file_name(model)
+    dest = (args.dir or modelfiles.cache_dir()) / modelfiles.quantized_file_name(model)
     with tempfile.TemporaryDirectory(prefix="densepeds-quantize-") as tmp:
         made = quantize.quantize_detector(
             model, Path(tmp) / dest.name, inputs, quant_format=args.format

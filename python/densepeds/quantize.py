@@ -18,8 +18,9 @@ The result records where it came from in its metadata (:data:`META_SOURCE` and t
 source model's sha256, the calibration frames, the format and onnxruntime's version. The same
 model, frames, options and onnxruntime version give the same bytes. The detector uses it in place
 of the float copy when it is found beside the model or in the model folders under
-:func:`quantized_file_name` (``densepeds models quantize`` writes it into the user cache);
-:func:`check` compares its detections with the float copy's on frames it was not calibrated on.
+:func:`densepeds.modelfiles.quantized_file_name` (``densepeds models quantize`` writes it into
+the user cache); :func:`check` compares its detections with the float copy's on frames it was
+not calibrated on.
 """
 
 from __future__ import annotations
@@ -37,7 +38,6 @@ from densepeds.boxes import iou_matrix
 from densepeds.errors import ModelError, ParameterError
 from densepeds.video import FrameRange, open_source, parse_frame_range
 
-SUFFIX = "-ortq"
 FORMATS = ("qdq", "qoperator")
 
 if TYPE_CHECKING:
@@ -46,11 +46,6 @@ META_SOURCE = "densepeds.quantized_from_sha256"
 META_CALIBRATION = "densepeds.calibration"
 META_FORMAT = "densepeds.quant_format"
 META_ORT = "densepeds.onnxruntime"
-
-
-def quantized_file_name(model: Path | str) -> str:
-    """The file name of ``model``'s quantised copy: ``<stem>-ortq.onnx``."""
-    return f"{Path(model).stem}{SUFFIX}.onnx"
 
 
 def metadata(path: Path) -> dict[str, str]:

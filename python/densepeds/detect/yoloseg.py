@@ -22,7 +22,8 @@ from densepeds.detect import onnxutil
 from densepeds.detect.tiling import Tile, TilesSpec, cut_flags, make_tiles, merge_views, parse_grid
 from densepeds.errors import ModelError, ParameterError
 from densepeds.frames import check_frame
-from densepeds.quantize import META_SOURCE, is_quantized_copy, metadata, quantized_file_name
+from densepeds.modelfiles import quantized_file_name
+from densepeds.quantize import META_SOURCE, is_quantized_copy, metadata
 from densepeds.types import Detections
 
 LETTERBOX_GREY = 114
