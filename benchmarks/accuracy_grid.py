@@ -59,7 +59,13 @@ FRCNN_SEQUENCES = ("TUD-Stadtmitte", "ETH-Sunnyday", "KITTI-17", "Venice-2", "PE
 VIDEOS = dict(realvideo.VIDEOS)  # sequence -> frame range
 # Detection source -> det file (motion only) or the segmenter's options (full pipeline).
 DET_FILES = {"det": "det.txt", "frcnn": "det-frcnn.txt"}
-DETECTOR_OPTIONS: dict[str, dict[str, Any]] = {"float": {}, "int8": {"dequantize": False}}
+DETECTOR_OPTIONS: dict[str, dict[str, Any]] = {
+    "float": {"quantized": False},
+    "int8": {"dequantize": False, "quantized": False},
+}
+# Sources left out of the grid unless a --cells pattern names them: ``ortq``, the int8 copy made
+# by `densepeds models quantize` (found in $DENSEPEDS_MODEL_DIR; the float copy's tracker preset).
+OPTIONAL_SOURCES: dict[str, dict[str, Any]] = {"ortq": {"quantized": True}}
 FEATURE_KINDS = ("segmented", "bbox", "masked_pool")
 SHOWN = ("HOTA", "IDF1", "MOTA", "IDSW", "FP", "FN")
 Rows = npt.NDArray[np.float64]  # [M, 8]: frame, id, x1, y1, x2, y2, score, matched (1/0)
@@ -76,7 +82,11 @@ class Cell:
 
     @property
     def full_pipeline(self) -> bool:
-        return self.source in DETECTOR_OPTIONS
+        return self.source in DETECTOR_OPTIONS or self.source in OPTIONAL_SOURCES
+
+    @property
+    def detector_options(self) -> dict[str, Any]:
+        return {**DETECTOR_OPTIONS, **OPTIONAL_SOURCES}[self.source]
 
 
 CELLS = (
@@ -132,7 +142,9 @@ def select_cells(patterns: Sequence[str] | None) -> list[Cell]:
     """The cells whose name (``SEQ/SOURCE``) matches any glob pattern (all without patterns)."""
     if not patterns:
         return list(CELLS)
-    cells = [c for c in CELLS if any(fnmatch.fnmatch(c.name, p) for p in patterns)]
+    optional = [Cell(s, src) for src in OPTIONAL_SOURCES for s in VIDEOS]
+    named = [c for c in optional if any(p.endswith(f"/{c.source}") for p in patterns)]
+    cells = [c for c in (*CELLS, *named) if any(fnmatch.fnmatch(c.name, p) for p in patterns)]
     if not cells:
         sys.exit(f"no cell matches {list(patterns)}; cells: {', '.join(c.name for c in CELLS)}")
     return cells
@@ -151,7 +163,7 @@ def load_cell(
     info = motio.read_seqinfo(seq_dir)
     if cell.full_pipeline:
         video = realvideo.load_video(
-            cell.seq, VIDEOS[cell.seq], kinds, cache, DETECTOR_OPTIONS[cell.source], quiet
+            cell.seq, VIDEOS[cell.seq], kinds, cache, cell.detector_options, quiet
         )
         size = (info.width, info.height)
         return CellData(cell, seq_dir, info.fps, size, video.dets, video.embeddings)

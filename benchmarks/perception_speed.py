@@ -51,8 +51,27 @@ def ms_per_call(fn, items: list, repeat: int = 1) -> float:
     return 1000 * (time.perf_counter() - start) / (repeat * len(items))
 
 
+def _detector(model: Path, int8: Path | None, threads: int, cfg: dict) -> YoloSegDetector:
+    """The shared model (never its int8 copy), or with ``cfg['int8']`` the int8 copy given."""
+    cfg = dict(cfg)
+    if cfg.pop("int8", False):
+        assert int8 is not None
+        return YoloSegDetector(int8, threads=threads, **cfg)
+    return YoloSegDetector(model, threads=threads, quantized=False, **cfg)
+
+
+def _int8_configs(int8: Path | None) -> list[tuple[str, dict]]:
+    if int8 is None:
+        return []
+    return [("3x2 tiles, int8 copy (`densepeds models quantize`)", dict(tiles="auto", int8=True))]
+
+
 def detection_rows(
-    model: Path, threads: int, frames: dict[str, list[np.ndarray]], rounds: int
+    model: Path,
+    threads: int,
+    frames: dict[str, list[np.ndarray]],
+    rounds: int,
+    int8: Path | None = None,
 ) -> list[str]:
     configs = [
         ("one pass (320 px)", dict(tiles=None)),
@@ -66,8 +85,9 @@ def detection_rows(
         ("3x2 tiles + whole frame, batched, no masks", dict(tiles="auto", with_masks=False)),
         ("3x2 tiles + whole frame, batched, float copy", dict(tiles="auto", dequantize=True)),
         ("one pass, float copy", dict(tiles=None, dequantize=True)),
+        *_int8_configs(int8),
     ]
-    detectors = [YoloSegDetector(model, threads=threads, **cfg) for _, cfg in configs]  # type: ignore[arg-type]
+    detectors = [_detector(model, int8, threads, cfg) for _, cfg in configs]
     best = np.full((len(configs), len(frames)), np.inf)
     # Round-robin over the settings and keep each one's best round: a shared machine's load
     # then affects all settings alike.
@@ -82,7 +102,7 @@ def detection_rows(
     return rows
 
 
-def recall_rows(model: Path, threads: int, shared: Path) -> list[str]:
+def recall_rows(model: Path, threads: int, shared: Path, int8: Path | None = None) -> list[str]:
     """Recall at IoU 0.5 of gt pedestrians with visibility >= 0.5 (as tests/test_detect.py)."""
     from densepeds.boxes import iou_matrix
     from scipy.optimize import linear_sum_assignment
@@ -107,8 +127,9 @@ def recall_rows(model: Path, threads: int, shared: Path) -> list[str]:
         ("3x2 tiles, no whole frame", dict(tiles="auto", full_frame=False)),
         ("one pass, float copy", dict(tiles=None, dequantize=True)),
         ("3x2 tiles + whole frame, float copy", dict(tiles="auto", dequantize=True)),
+        *_int8_configs(int8),
     ]:
-        det = YoloSegDetector(model, threads=threads, **cfg)  # type: ignore[arg-type]
+        det = _detector(model, int8, threads, cfg)
         cells = []
         for frames, gt in sets.values():
             found = total = 0
@@ -231,6 +252,9 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=2, help="timing rounds (best one kept)")
     parser.add_argument("--skip-appearance", action="store_true")
     parser.add_argument("--reid-only", action="store_true", help="no detection rows")
+    parser.add_argument(
+        "--int8", type=Path, metavar="FILE", help="also the detector's int8 copy in this file"
+    )
     args = parser.parse_args()
     shared: Path = args.shared
     seg = shared / "models" / "yolov8n-seg-320-int8.onnx"
@@ -246,8 +270,8 @@ def main() -> None:
     print(f"onnxruntime intra_op_num_threads={args.threads}; load average {load:.1f}\n")
     frames = {"MOT20-01 960x540": list(mot20_frames.values()), "MOT17-02 1920x1080": mot17}
     if not args.reid_only:
-        print("\n".join(detection_rows(seg, args.threads, frames, args.rounds)) + "\n")
-        print("\n".join(recall_rows(seg, args.threads, shared)) + "\n")
+        print("\n".join(detection_rows(seg, args.threads, frames, args.rounds, args.int8)) + "\n")
+        print("\n".join(recall_rows(seg, args.threads, shared, args.int8)) + "\n")
 
     gt = read_gt(mot20 / "gt" / "gt.txt")
     crops = []

@@ -15,7 +15,9 @@ medians, re-ID's share of our frame and the ratio reference / ours. ``--profile`
 in-process pass of our pipeline that splits detection into preprocessing, inference, box
 decoding and masks. ``--reuse`` adds a third process: `densepeds run` with re-ID reuse switched
 on (``ReID(reuse=True)``, which the pipeline does not do by default; see
-densepeds.reid.ReusePolicy). ``--memory`` appends `benchmarks/memory.py`'s table; ``--write``
+densepeds.reid.ReusePolicy). ``--int8 FILE`` adds `densepeds run --detector-model FILE`, the
+detector's int8 copy made by `densepeds models quantize` (densepeds.quantize). ``--memory``
+appends `benchmarks/memory.py`'s table; ``--write``
 writes the whole report as Markdown. Figures only: nothing is asserted.
 """
 
@@ -147,8 +149,9 @@ def compare(
     features = _default_features()
     tiles = _tiles(seq_dir)
     nice = ["nice", "-n", str(args.nice)] if args.nice else []
-    ours = [*nice, *pin, sys.executable, "-m", "densepeds", "run", str(seq_dir)]
-    ours += ["--detector", "yoloseg", "--frames", frames, "--out", f"{tmp}/ours.txt", "-q"]
+    run = [*nice, *pin, sys.executable, "-m", "densepeds", "run", str(seq_dir)]
+    run += ["--detector", "yoloseg", "--frames", frames, "-q"]
+    ours = [*run, "--out", f"{tmp}/ours.txt"]
     cmds = {
         "ours": ours,
         "reference": [
@@ -170,7 +173,11 @@ def compare(
             *("--detector", "yoloseg", "--frames", frames, "--out", f"{tmp}/reuse.txt", "-q"),
         ],
     }
-    markers = {"ours": "fps (", "ours+reuse": "fps (", "reference": "reference:"}
+    if args.int8 is not None:
+        int8 = ["--detector-model", str(args.int8.resolve()), "--out", f"{tmp}/int8.txt"]
+        cmds["ours+int8"] = [*run, *int8]
+    # `densepeds run` ends with "... N frames/s for the whole pipeline; timed: ... ms/frame)".
+    markers = {name: "frames/s" for name in cmds} | {"reference": "reference:"}
     runs: dict[str, list[Run]] = {name: [] for name in names}
     lines = [f"### {seq}, frames {frames} ({tiles} tiles in both)", "", "```"]
 
@@ -261,6 +268,12 @@ def main() -> int:
     ap.add_argument("--nice", type=int, default=5, help="niceness of the timed processes")
     ap.add_argument("--profile", action="store_true")
     ap.add_argument("--reuse", action="store_true", help="also time ours with re-ID reuse on")
+    ap.add_argument(
+        "--int8",
+        type=Path,
+        metavar="FILE",
+        help="also time ours with this int8 copy of the detector (`densepeds models quantize`)",
+    )
     ap.add_argument("--memory", action="store_true", help="also run benchmarks/memory.py")
     ap.add_argument("--write", type=Path, help="write the report to this file")
     args = ap.parse_args()
@@ -268,6 +281,7 @@ def main() -> int:
     if len(ranges) != len(seqs):
         raise SystemExit(f"give one frame range per sequence: {len(seqs)} vs {len(ranges)}")
     names = ["reference", "ours", *(["ours+reuse"] if args.reuse else [])]
+    names += ["ours+int8"] if args.int8 is not None else []
     command = "OPENBLAS_NUM_THREADS=1 python benchmarks/pipeline_speed.py " + " ".join(sys.argv[1:])
     lines = [
         "# Speed: `densepeds run` against the reference pipeline",

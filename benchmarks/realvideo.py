@@ -79,9 +79,22 @@ class CachedVideo:
 def _model_stamp(name: str) -> str:
     from densepeds.modelfiles import find_model
 
-    p = find_model(name)
+    return _file_stamp(find_model(name))
+
+
+def _file_stamp(p: Path) -> str:
     st = p.stat()
     return f"{p.name}:{st.st_size}:{int(st.st_mtime)}"
+
+
+def detector_file(detector_options: dict[str, Any]) -> Path:
+    """The model file the detector runs with these options (its int8 copy where it takes it)."""
+    from densepeds.detect import DEFAULT_MODELS
+    from densepeds.detect.yoloseg import choose_model
+    from densepeds.modelfiles import find_model
+
+    quantized = detector_settings(detector_options)["quantized"]
+    return choose_model(find_model(DEFAULT_MODELS["yoloseg"]), quantized)
 
 
 def detector_settings(detector_options: dict[str, Any]) -> dict[str, Any]:
@@ -102,13 +115,15 @@ def detector_settings(detector_options: dict[str, Any]) -> dict[str, Any]:
 def _cache_key(seq: str, frames: str, detector_options: dict[str, Any]) -> str:
     import inspect
 
-    from densepeds.detect import DEFAULT_MODELS
     from densepeds.detect.tiling import auto_grid
 
-    settings = sorted((k, repr(v)) for k, v in detector_settings(detector_options).items())
+    # The model choice is keyed by the file it resolves to (the stamp), not by the option.
+    settings = sorted(
+        (k, repr(v)) for k, v in detector_settings(detector_options).items() if k != "quantized"
+    )
     # "auto" tiles resolve by a rule in the code: a change of the rule must miss the cache.
     rule = hashlib.sha1(inspect.getsource(auto_grid).encode()).hexdigest()[:8]
-    text = json.dumps([seq, frames, settings, rule, _model_stamp(DEFAULT_MODELS["yoloseg"])])
+    text = json.dumps([seq, frames, settings, rule, _file_stamp(detector_file(detector_options))])
     return hashlib.sha1(text.encode()).hexdigest()[:10]
 
 

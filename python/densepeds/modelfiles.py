@@ -95,6 +95,23 @@ MODELS: dict[str, ModelInfo] = {
         ),
     )
 }
+QUANTIZED_SUFFIX = "-ortq"
+
+
+def quantized_file_name(model: Path | str) -> str:
+    """The file name of a model's int8 copy (``densepeds models quantize``): <stem>-ortq.onnx."""
+    return f"{Path(model).stem}{QUANTIZED_SUFFIX}.onnx"
+
+
+MODELS["yoloseg-int8"] = ModelInfo(
+    name="yoloseg-int8",
+    file=quantized_file_name(MODELS["yoloseg"].file),
+    role="detector: yoloseg's int8 copy for this CPU, run in its place where present",
+    licence=MODELS["yoloseg"].licence,
+    contract=f"as yoloseg's, any batch: {MODELS['yoloseg'].contract}",
+    source="made locally from yoloseg: densepeds models quantize --calibrate VIDEO "
+    "(models/README.md)",
+)
 BY_FILE: dict[str, ModelInfo] = {m.file: m for m in MODELS.values()}
 
 

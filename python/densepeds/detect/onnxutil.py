@@ -245,7 +245,11 @@ def dequantized(model: onnx.ModelProto) -> onnx.ModelProto:
             node.input[i] = source(name)
     for value in graph.output:
         if value.name in rename:
-            kept.append(onnx.helper.make_node("Identity", [source(value.name)], [value.name]))
+            kept.append(
+                onnx.helper.make_node(
+                    "Identity", [source(value.name)], [value.name], name=f"{value.name}/identity"
+                )
+            )
     used = {name for node in kept for name in node.input}
     initializers = [i for i in list(graph.initializer) + folded if i.name in used]
     del graph.node[:]

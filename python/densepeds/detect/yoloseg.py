@@ -22,6 +22,8 @@ from densepeds.detect import onnxutil
 from densepeds.detect.tiling import Tile, TilesSpec, cut_flags, make_tiles, merge_views, parse_grid
 from densepeds.errors import ModelError, ParameterError
 from densepeds.frames import check_frame
+from densepeds.modelfiles import quantized_file_name
+from densepeds.quantize import META_SOURCE, is_quantized_copy, metadata
 from densepeds.types import Detections
 
 LETTERBOX_GREY = 114
@@ -71,8 +73,12 @@ class YoloSegDetector:
     model is left as it is): about 2x faster here (onnxruntime cannot fuse this export's QDQ
     pattern into integer kernels), and its scores separate people from clutter better, which
     the pipeline's tracker preset relies on; ``dequantize=False`` runs the graph as shipped.
-    benchmarks/results/realvideo.md and speed.md have the figures. A frame too small for tiles
-    is always seen whole.
+    benchmarks/results/realvideo.md and speed.md have the figures. ``quantized`` chooses the
+    int8 copy made for this CPU by ``densepeds models quantize`` (:func:`choose_model`): None
+    (default) runs it where one made from ``model`` is beside it or in the model folders, True
+    requires it, False never runs it; ``path`` is the file run, ``quantized`` (attribute)
+    whether it is such a copy (benchmarks/results/int8.md has its speed and accuracy). A frame
+    too small for tiles is always seen whole.
     """
 
     def __init__(
@@ -88,6 +94,7 @@ class YoloSegDetector:
         threads: int | None = None,
         person_class: int = 0,
         dequantize: bool = True,
+        quantized: bool | None = None,
     ) -> None:
         if not 0.0 <= score_threshold <= 1.0:
             raise ParameterError(f"score_threshold must be in [0, 1], got {score_threshold}")
@@ -99,9 +106,11 @@ class YoloSegDetector:
         self.full_frame = full_frame
         self.with_masks = with_masks
         self.person_class = person_class
-        self.path = model
+        self.source = model
+        self.path = choose_model(model, quantized)
+        self.quantized = self.path != model or is_quantized_copy(model)
         self.session, self.rewritten = onnxutil.batched_session(
-            model, threads, dequantize=dequantize
+            self.path, threads, dequantize=dequantize and not self.quantized
         )
         self.batch_views = batch_views
         # Seconds spent per stage (preprocess, inference, boxes, masks), for benchmarks.
@@ -161,12 +170,16 @@ class YoloSegDetector:
             else np.ones(2)
         )
 
-    def _infer(self, batch_u8: npt.NDArray[np.uint8]) -> tuple[np.ndarray, np.ndarray]:
-        """batch_u8: BGR uint8 [B, H, W, 3] letterboxed views -> (predictions, prototypes)."""
+    def prepare(self, batch_u8: npt.NDArray[np.uint8]) -> npt.NDArray[np.float32]:
+        """BGR uint8 [B, H, W, 3] letterboxed views -> the model's input (RGB in [0, 1])."""
         x = batch_u8[..., ::-1].astype(np.float32) * np.float32(1 / 255)
         if not self.nhwc:
             x = x.transpose(0, 3, 1, 2)
-        x = np.ascontiguousarray(x)
+        return np.ascontiguousarray(x)
+
+    def _infer(self, batch_u8: npt.NDArray[np.uint8]) -> tuple[np.ndarray, np.ndarray]:
+        """batch_u8: BGR uint8 [B, H, W, 3] letterboxed views -> (predictions, prototypes)."""
+        x = self.prepare(batch_u8)
         if self.batch_views:
             out = self.session.run(None, {self.input_name: x})
             return out[self.pred_index], out[self.proto_index]
@@ -312,6 +325,36 @@ class YoloSegDetector:
                 )
                 masks[i] = local.reshape(y1 - y0, x1 - x0) > 0
         return masks, mask_boxes
+
+
+def choose_model(model: Path, quantized: bool | None) -> Path:
+    """The file the detector runs for ``model``: its int8 copy or ``model`` itself.
+
+    The int8 copy (``densepeds models quantize``, :mod:`densepeds.quantize`) is looked for beside
+    ``model`` and then in the model folders; it is used when ``quantized`` is True (ModelError
+    when there is none) or None (when there is one). A copy made from a different file than
+    ``model`` (its recorded sha256 differs) is a ModelError either way, never used silently.
+    """
+    if quantized is False or is_quantized_copy(model):
+        return model
+    from densepeds.modelfiles import locate, sha256_of
+
+    name = quantized_file_name(model)
+    found = model.with_name(name) if model.with_name(name).is_file() else locate(name)
+    if found is None:
+        if quantized:
+            raise ModelError(
+                f"no int8 copy of {model.name} ({name}) beside it or in the model folders; make "
+                "one with `densepeds models quantize --calibrate VIDEO`"
+            )
+        return model
+    recorded = metadata(found).get(META_SOURCE)
+    if recorded != sha256_of(model):
+        raise ModelError(
+            f"{found} was not made from {model} (sha256 differs); remake it with "
+            "`densepeds models quantize --calibrate VIDEO`, or delete it"
+        )
+    return found
 
 
 def _cell_span(lo: int, hi: int, origin: int, step: float, cells: int) -> tuple[int, int]:
