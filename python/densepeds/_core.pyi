@@ -139,7 +139,7 @@ class Tracker:
         ellipse_l_scale: float = 0.15,
         ellipse_w_scale: float = 0.15,
         output_lost: int = 5,
-        output_lost_adaptive: bool = False,
+        output_lost_adaptive: bool = True,
         output_lost_precision: float = 0.33,
         occluded_output: int = 10,
         occlusion_coverage: float = 0.5,

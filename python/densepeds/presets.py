@@ -93,6 +93,12 @@ _CNN_APPEARANCE: dict[str, float | int | bool] = {
     "recovery": False,
     # Box sizes of a tiled detector jitter from frame to frame: smooth them more.
     "size_smoothing": 0.7,
+    # A segmenter's box covers the visible part of a person: complete the boxes whose lower part
+    # is hidden behind a nearer person to the whole person (what the ground truth annotates).
+    "amodal_boxes": True,
+    # Report lost tracks for output_lost / occluded_output frames whatever the sequence's record:
+    # on the two videos the adaptive rule (the tracker's default) reports fewer right boxes.
+    "output_lost_adaptive": False,
 }
 
 

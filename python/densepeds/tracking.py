@@ -87,7 +87,7 @@ ellipse_w_scale         float  0.15        (0, inf)             FRVO ellipse ext
 output_lost             int    5           0..=4294967295       confirmed tracks are also reported,
                                                                 at their prediction, this many
                                                                 frames unmatched
-output_lost_adaptive    bool   False       True|False           report a lost track at gap t
+output_lost_adaptive    bool   True        True|False           report a lost track at gap t
                                                                 (output_lost, occluded_output) only
                                                                 while, on this sequence so far, lost
                                                                 tracks (occluded and in the open

@@ -439,7 +439,7 @@ tracker_params! {
             "FRVO ellipse extent across the motion = scale * box width (small: overlap is occlusion)";
         output_lost: u32 = 5, ints(0, U32_MAX),
             "confirmed tracks are also reported, at their prediction, this many frames unmatched";
-        output_lost_adaptive: bool = false, Range::Bool,
+        output_lost_adaptive: bool = true, Range::Bool,
             "report a lost track at gap t (output_lost, occluded_output) only while, on this sequence so far, lost tracks (occluded and in the open counted apart) were re-found at their predicted box (IoU >= 0.5) at least as often as not";
         output_lost_precision: f64 = 0.33, UNIT,
             "with output_lost_adaptive: the share of gaps re-found at the prediction needed to report a lost track (a box that is a hit with probability p raises HOTA's DetA where p > DetA / (1 + DetA), 1/3 at DetA 0.5; 0.5 for MOTA)";
