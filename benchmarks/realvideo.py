@@ -83,8 +83,10 @@ def _model_stamp(name: str) -> str:
 
 
 def _file_stamp(p: Path) -> str:
-    st = p.stat()
-    return f"{p.name}:{st.st_size}:{int(st.st_mtime)}"
+    """The model file by name and content (a copy or a remount of the same bytes hits the cache)."""
+    from densepeds.modelfiles import sha256_of
+
+    return f"{p.name}:{p.stat().st_size}:{sha256_of(p)[:16]}"
 
 
 def detector_file(detector_options: dict[str, Any]) -> Path:
