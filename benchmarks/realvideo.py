@@ -102,13 +102,21 @@ def detector_settings(detector_options: dict[str, Any]) -> dict[str, Any]:
 def _cache_key(seq: str, frames: str, detector_options: dict[str, Any]) -> str:
     import inspect
 
-    from densepeds.detect import DEFAULT_MODELS
-    from densepeds.detect.tiling import auto_grid
+    from densepeds.detect import DEFAULT_MODELS, tiling
 
-    settings = sorted((k, repr(v)) for k, v in detector_settings(detector_options).items())
-    # "auto" tiles resolve by a rule in the code: a change of the rule must miss the cache.
-    rule = hashlib.sha1(inspect.getsource(auto_grid).encode()).hexdigest()[:8]
-    text = json.dumps([seq, frames, settings, rule, _model_stamp(DEFAULT_MODELS["yoloseg"])])
+    settings = detector_settings(detector_options)
+    # Tiles chosen by a rule in the code: a change of the rule must miss the cache. The
+    # settings of the people-following rule enter the key only where it is chosen.
+    rules: tuple[Any, ...] = (tiling.auto_grid,)
+    if settings.get("tiles") == "people":
+        rules += (tiling.fit_perspective, tiling.people_tiles, tiling._people_tiles)
+        rules += (tiling.PeopleTiles,)
+    else:
+        settings = {k: v for k, v in settings.items() if k not in tiling.PEOPLE_SETTINGS}
+    items = sorted((k, repr(v)) for k, v in settings.items())
+    source = "".join(inspect.getsource(f) for f in rules)
+    rule = hashlib.sha1(source.encode()).hexdigest()[:8]
+    text = json.dumps([seq, frames, items, rule, _model_stamp(DEFAULT_MODELS["yoloseg"])])
     return hashlib.sha1(text.encode()).hexdigest()[:10]
 
 

@@ -19,7 +19,15 @@ import numpy as np
 import numpy.typing as npt
 
 from densepeds.detect import onnxutil
-from densepeds.detect.tiling import Tile, TilesSpec, cut_flags, make_tiles, merge_views, parse_grid
+from densepeds.detect.tiling import (
+    PeopleTiles,
+    Tile,
+    TilesSpec,
+    cut_flags,
+    make_tiles,
+    merge_views,
+    parse_grid,
+)
 from densepeds.errors import ModelError, ParameterError
 from densepeds.frames import check_frame
 from densepeds.types import Detections
@@ -73,6 +81,13 @@ class YoloSegDetector:
     the pipeline's tracker preset relies on; ``dequantize=False`` runs the graph as shipped.
     benchmarks/results/realvideo.md and speed.md have the figures. A frame too small for tiles
     is always seen whole.
+
+    ``tiles="people"`` chooses each frame's tiles from the people found in the last frames
+    (``densepeds.detect.tiling.PeopleTiles``: ``auto`` until enough are seen): bands of square
+    tiles sized so that a person there spans ``person_share`` of the input, magnified at most
+    ``max_scale``, at most ``max_tiles`` tiles a frame. It is an option, not the default: on
+    the dev videos it traded MOT20-01 accuracy for PETS09 accuracy with more views a frame
+    (``benchmarks/detector_recall.py`` measures recall and views per choice).
     """
 
     def __init__(
@@ -88,6 +103,9 @@ class YoloSegDetector:
         threads: int | None = None,
         person_class: int = 0,
         dequantize: bool = True,
+        person_share: float = 0.25,
+        max_tiles: int = 12,
+        max_scale: float = 3.0,
     ) -> None:
         if not 0.0 <= score_threshold <= 1.0:
             raise ParameterError(f"score_threshold must be in [0, 1], got {score_threshold}")
@@ -106,7 +124,11 @@ class YoloSegDetector:
         self.batch_views = batch_views
         # Seconds spent per stage (preprocess, inference, boxes, masks), for benchmarks.
         self.stage_seconds: dict[str, float] = {}
+        self.last_views = 0  # views (tiles) of the last frame
         self._read_contract()
+        self.people_tiles = PeopleTiles(
+            max(self.input_w, self.input_h), person_share, max_tiles, max_scale
+        )
 
     # --- model contract -------------------------------------------------------------------
     def _read_contract(self) -> None:
@@ -177,9 +199,12 @@ class YoloSegDetector:
 
     # --- detection --------------------------------------------------------------------------
     def views(self, width: int, height: int) -> list[_View]:
-        cols, rows = parse_grid(self.tiles, width, height, max(self.input_w, self.input_h))
         whole = Tile(0, 0, width, height, (False, False, False, False))
-        tiles = make_tiles(width, height, cols, rows) if cols * rows > 1 else []
+        if self.tiles == "people":
+            tiles = self.people_tiles.tiles(width, height)
+        else:
+            cols, rows = parse_grid(self.tiles, width, height, max(self.input_w, self.input_h))
+            tiles = make_tiles(width, height, cols, rows) if cols * rows > 1 else []
         regions = [(t, True) for t in tiles]
         if not tiles or self.full_frame:
             regions.append((whole, False))
@@ -205,11 +230,14 @@ class YoloSegDetector:
         height, width = frame.shape[:2]
         clock = time.perf_counter()
         views = self.views(width, height)
+        self.last_views = len(views)
         batch = self.letterbox(frame, views)
         clock = self._tick("preprocess", clock)
         preds, protos = self._infer(batch)
         clock = self._tick("inference", clock)
         found = self.candidates(preds, views, width, height)
+        if self.tiles == "people":
+            self.people_tiles.observe(found.boxes, found.scores)
         dets = Detections(found.boxes.astype(np.float32), found.scores)
         clock = self._tick("boxes", clock)
         if self.with_masks and len(found.boxes):
