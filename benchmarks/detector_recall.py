@@ -1,6 +1,6 @@
 """Detector recall per ground-truth visibility, for tile choices, on the two real videos.
 
-    OPENBLAS_NUM_THREADS=1 python benchmarks/detector_recall.py --tiles auto 4x2 people \\
+    OPENBLAS_NUM_THREADS=1 python benchmarks/detector_recall.py --tiles auto 3x2 4x2 \\
         [--every 3] [--int8] [--option person_share=0.3]
 
 Runs the shared segmenter (float copy, or ``--int8``: the graph as shipped) on every

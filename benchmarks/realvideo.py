@@ -106,9 +106,9 @@ def _cache_key(seq: str, frames: str, detector_options: dict[str, Any]) -> str:
 
     settings = detector_settings(detector_options)
     # Tiles chosen by a rule in the code: a change of the rule must miss the cache. The
-    # settings of the people-following rule enter the key only where it is chosen.
+    # settings of the people-following rule ("auto") enter the key only where it is chosen.
     rules: tuple[Any, ...] = (tiling.auto_grid,)
-    if settings.get("tiles") == "people":
+    if settings.get("tiles") == "auto":
         rules += (tiling.fit_perspective, tiling.people_tiles, tiling._people_tiles)
         rules += (tiling.PeopleTiles,)
     else:

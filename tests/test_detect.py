@@ -200,12 +200,14 @@ def test_dynamic_batch_copy_matches_per_tile_calls() -> None:
 
 def test_batched_views_equal_per_view_calls(yolo: YoloSegDetector, mot20_frames) -> None:
     frame = mot20_frames[100]
-    one_call = yolo(frame)
-    yolo.batch_views = False
+    yolo.tiles = "3x2"  # the same views in both calls ("auto" follows the first call's people)
     try:
+        one_call = yolo(frame)
+        yolo.batch_views = False
         per_view = yolo(frame)
     finally:
         yolo.batch_views = True
+        yolo.tiles = "auto"
     np.testing.assert_allclose(one_call.boxes, per_view.boxes, atol=1e-3)
     assert one_call.masks is not None and per_view.masks is not None
     assert all(np.array_equal(a, b) for a, b in zip(one_call.masks, per_view.masks, strict=True))
@@ -482,22 +484,26 @@ def test_people_tiles_start_from_the_grid_then_follow_the_people() -> None:
     assert first == make_tiles(960, 540, *auto_grid(960, 540, 320))
     feet = np.linspace(250, 540, 30)
     small = perspective_people(-30.0, 0.3, feet, 960)
-    planner.observe(small, np.full(len(small), 0.9))
+    planner.observe(small, np.full(len(small), 0.9), 960, 540)
     assert planner.perspective is not None and planner.perspective.b == pytest.approx(0.3)
     # Unsure detections are not people to follow.
     unsure = PeopleTiles(320, 0.25, 100, 3.0)
-    unsure.observe(small, np.full(len(small), 0.1))
+    unsure.observe(small, np.full(len(small), 0.1), 960, 540)
     assert unsure.perspective is None and unsure.tiles(960, 540) == first
     # Twice as tall people: fewer, larger tiles.
     big = PeopleTiles(320, 0.25, 100, 3.0)
-    big.observe(perspective_people(-60.0, 0.6, feet, 960), np.full(len(small), 0.9))
+    big.observe(perspective_people(-60.0, 0.6, feet, 960), np.full(len(small), 0.9), 960, 540)
     assert len(big.tiles(960, 540)) < len(planner.tiles(960, 540))
+    # Another frame size is another video: the grid again, then its own people.
+    assert planner.tiles(768, 576) == make_tiles(768, 576, *auto_grid(768, 576, 320))
+    planner.observe(small[:3], np.full(3, 0.9), 768, 576)
+    assert planner.perspective is None
     planner.reset()
     assert planner.tiles(960, 540) == first
 
 
-def test_yoloseg_people_tiles_follow_its_detections(tmp_path: Path) -> None:
-    det = make_detector("yoloseg", tiny_yoloseg(tmp_path / "y.onnx"), tiles="people", threads=1)
+def test_yoloseg_auto_tiles_follow_its_detections(tmp_path: Path) -> None:
+    det = make_detector("yoloseg", tiny_yoloseg(tmp_path / "y.onnx"), threads=1)
     assert isinstance(det, YoloSegDetector)
     frame = np.zeros((128, 256, 3), np.uint8)
     det(frame)

@@ -4,10 +4,10 @@ A 320 px model sees a 1080p crowd at a sixth of its size and misses most people;
 overlapping tiles (plus the whole frame, for people larger than a tile) recovers them. Merging
 drops boxes cut by an interior tile edge when another view sees the person whole, then runs NMS.
 
-``PeopleTiles`` chooses the tiles from the people themselves: it fits person height against
-foot position (the perspective of a camera above the ground) on the detections of recent frames
-and cuts each band of rows so that a person there spans a set share of the network input:
-small, far people get small (magnified) tiles, near ones large tiles.
+``PeopleTiles`` (YoloSegDetector's "auto" tiles) chooses the tiles from the people themselves:
+it fits person height against foot position (the perspective of a camera above the ground) on
+the detections of recent frames and cuts each band of rows so that a person there spans a set
+share of the network input: small, far people get small (magnified) tiles, near ones large.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ TilesSpec = str | int | tuple[int, int] | None
 
 OVERLAP = 0.2  # fraction of a tile shared with each neighbour
 CUT_MARGIN = 3.0  # px (frame scale): a box this close to an interior tile edge is "cut"
-# The detector settings read only by the people-following rule (tiles="people").
+# The detector settings read only by the people-following rule (the yoloseg "auto" tiles).
 PEOPLE_SETTINGS = ("person_share", "max_tiles", "max_scale")
 
 
@@ -44,7 +44,7 @@ class Tile:
 
 def parse_grid(tiles: TilesSpec, width: int, height: int, input_size: int) -> tuple[int, int]:
     """(columns, rows) from the user's spec: None/1/"none" = one pass, "auto", (c, r), "CxR".
-    ("people", a detector's own rule that follows the people it finds, is not a grid.)"""
+    ("auto" here is the fixed grid; YoloSegDetector starts from it, then follows the people.)"""
     if tiles is None or tiles == 1 or tiles == "none":
         return 1, 1
     if tiles == "auto":
@@ -270,7 +270,8 @@ class PeopleTiles:
 
     ``tiles(width, height)`` gives the views for the next frame: ``auto_grid``'s tiles until
     ``min_people`` confident detections (score >= ``min_score``) have been seen, then
-    ``people_tiles`` on the perspective fitted to them; ``observe`` feeds a frame's detections.
+    ``people_tiles`` on the perspective fitted to them; ``observe`` feeds a frame's detections
+    (a frame of another size starts over: another video).
     """
 
     def __init__(
@@ -291,10 +292,11 @@ class PeopleTiles:
         self.min_score = min_score
         self.min_people = min_people
         self._seen: list[FloatArray] = []
+        self._size = (0, 0)
         self.perspective: Perspective | None = None
 
     def tiles(self, width: int, height: int) -> list[Tile]:
-        if self.perspective is None:
+        if self.perspective is None or (width, height) != self._size:
             cols, rows = auto_grid(width, height, self.input_size)
             return make_tiles(width, height, cols, rows) if cols * rows > 1 else []
         return people_tiles(
@@ -307,11 +309,17 @@ class PeopleTiles:
             self.max_scale,
         )
 
-    def observe(self, boxes: FloatArray, scores: npt.NDArray[np.floating]) -> None:
+    def observe(
+        self, boxes: FloatArray, scores: npt.NDArray[np.floating], width: int, height: int
+    ) -> None:
+        if (width, height) != self._size:
+            self.reset()
+            self._size = (width, height)
         self._seen.append(np.asarray(boxes, np.float64)[np.asarray(scores) >= self.min_score])
         del self._seen[: -self.window]
         self.perspective = fit_perspective(np.concatenate(self._seen), self.min_people)
 
     def reset(self) -> None:
         self._seen.clear()
+        self._size = (0, 0)
         self.perspective = None

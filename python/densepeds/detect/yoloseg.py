@@ -82,12 +82,12 @@ class YoloSegDetector:
     benchmarks/results/realvideo.md and speed.md have the figures. A frame too small for tiles
     is always seen whole.
 
-    ``tiles="people"`` chooses each frame's tiles from the people found in the last frames
-    (``densepeds.detect.tiling.PeopleTiles``: ``auto`` until enough are seen): bands of square
-    tiles sized so that a person there spans ``person_share`` of the input, magnified at most
-    ``max_scale``, at most ``max_tiles`` tiles a frame. It is an option, not the default: on
-    the dev videos it traded MOT20-01 accuracy for PETS09 accuracy with more views a frame
-    (``benchmarks/detector_recall.py`` measures recall and views per choice).
+    ``tiles="auto"`` (default) chooses each frame's tiles from the people found in the last
+    frames (``densepeds.detect.tiling.PeopleTiles``; ``auto_grid``'s fixed grid until enough
+    are seen): bands of square tiles sized so that a person there spans ``person_share`` of
+    the input, magnified at most ``max_scale``, at most ``max_tiles`` views a frame; a fixed
+    grid is given as "CxR". ``benchmarks/detector_recall.py`` measures recall and views per
+    choice.
     """
 
     def __init__(
@@ -200,7 +200,7 @@ class YoloSegDetector:
     # --- detection --------------------------------------------------------------------------
     def views(self, width: int, height: int) -> list[_View]:
         whole = Tile(0, 0, width, height, (False, False, False, False))
-        if self.tiles == "people":
+        if self.tiles == "auto":
             tiles = self.people_tiles.tiles(width, height)
         else:
             cols, rows = parse_grid(self.tiles, width, height, max(self.input_w, self.input_h))
@@ -236,8 +236,8 @@ class YoloSegDetector:
         preds, protos = self._infer(batch)
         clock = self._tick("inference", clock)
         found = self.candidates(preds, views, width, height)
-        if self.tiles == "people":
-            self.people_tiles.observe(found.boxes, found.scores)
+        if self.tiles == "auto":
+            self.people_tiles.observe(found.boxes, found.scores, width, height)
         dets = Detections(found.boxes.astype(np.float32), found.scores)
         clock = self._tick("boxes", clock)
         if self.with_masks and len(found.boxes):
