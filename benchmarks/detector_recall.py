@@ -96,11 +96,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--int8", action="store_true")
     ap.add_argument("--videos", nargs="+", default=[s for s, _ in realvideo.VIDEOS])
     ap.add_argument("--option", action="append", default=[], help="KEY=VALUE for the detector")
+    ap.add_argument("--write", type=Path, help="also write a Markdown table here")
     args = ap.parse_args(argv)
     base = accuracy_grid.parse_params(args.option)
     if args.int8:
         base["dequantize"] = False
-    print(f"load: {os.getloadavg()[0]:.1f} (2 cores)", flush=True)
+    load = f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores"
+    print(load, flush=True)
+    rows = []
     for tiles in args.tiles:
         for seq, frames in realvideo.VIDEOS:
             if seq not in args.videos:
@@ -108,7 +111,38 @@ def main(argv: Sequence[str] | None = None) -> int:
             r = run(seq, frames, args.every, {**base, "tiles": tiles})
             cells = " ".join(f"{k} {v:.1f}" for k, v in r.items())
             print(f"{tiles} {seq}: {cells}", flush=True)
+            rows.append((tiles, seq, r))
+    if args.write:
+        args.write.write_text(markdown(rows, args, load), encoding="utf-8")
     return 0
+
+
+def markdown(rows: Sequence[tuple[str, str, dict[str, float]]], args: Any, load: str) -> str:
+    graph = "int8 graph as shipped" if args.int8 else "float copy"
+    keys = [f"{BINS[i]:.2f}-{min(BINS[i + 1], 1):.2f}" for i in range(len(BINS) - 1)]
+    keys += ["all", "unmatched/frame", "views/frame", "ms/frame"]
+    opts = "".join(f" --option {o}" for o in args.option)
+    lines = [
+        f"# Detector recall per tile choice ({graph})",
+        "",
+        "Recall (%) of ground-truth pedestrians per visibility bin after the pipeline's "
+        "detection filter (one-to-one, IoU >= 0.5), unmatched detections, views (tiles) and "
+        f"detector milliseconds per frame, every {args.every}th frame; {load}. Regenerate with:",
+        "",
+        "    OPENBLAS_NUM_THREADS=1 python benchmarks/detector_recall.py --tiles "
+        + " ".join(args.tiles)
+        + f" --every {args.every}"
+        + (" --int8" if args.int8 else "")
+        + opts
+        + f" --write {args.write}",
+        "",
+        "| tiles | video | " + " | ".join(keys) + " |",
+        "|---|---|" + "---:|" * len(keys),
+    ]
+    for tiles, seq, r in rows:
+        cells = " | ".join(f"{r[k]:.1f}" if k in r else "-" for k in keys)
+        lines.append(f"| {tiles} | {seq} | {cells} |")
+    return "\n".join(lines) + "\n"
 
 
 if __name__ == "__main__":
