@@ -117,15 +117,22 @@ def detector_settings(detector_options: dict[str, Any]) -> dict[str, Any]:
 def _cache_key(seq: str, frames: str, detector_options: dict[str, Any]) -> str:
     import inspect
 
-    from densepeds.detect.tiling import auto_grid
+    from densepeds.detect import tiling
 
     # The model choice is keyed by the file it resolves to (the stamp), not by the option.
-    settings = sorted(
-        (k, repr(v)) for k, v in detector_settings(detector_options).items() if k != "quantized"
-    )
-    # "auto" tiles resolve by a rule in the code: a change of the rule must miss the cache.
-    rule = hashlib.sha1(inspect.getsource(auto_grid).encode()).hexdigest()[:8]
-    text = json.dumps([seq, frames, settings, rule, _file_stamp(detector_file(detector_options))])
+    settings = {k: v for k, v in detector_settings(detector_options).items() if k != "quantized"}
+    # Tiles chosen by a rule in the code: a change of the rule must miss the cache. The
+    # settings of the people-following rule ("auto") enter the key only where it is chosen.
+    rules: tuple[Any, ...] = (tiling.auto_grid,)
+    if settings.get("tiles") == "auto":
+        rules += (tiling.fit_perspective, tiling.people_tiles, tiling._people_tiles)
+        rules += (tiling.PeopleTiles,)
+    else:
+        settings = {k: v for k, v in settings.items() if k not in tiling.PEOPLE_SETTINGS}
+    items = sorted((k, repr(v)) for k, v in settings.items())
+    source = "".join(inspect.getsource(f) for f in rules)
+    rule = hashlib.sha1(source.encode()).hexdigest()[:8]
+    text = json.dumps([seq, frames, items, rule, _file_stamp(detector_file(detector_options))])
     return hashlib.sha1(text.encode()).hexdigest()[:10]
 
 

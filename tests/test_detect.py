@@ -14,11 +14,15 @@ from densepeds.detect import make_detector
 from densepeds.detect.onnxutil import dequantized, load_model, make_session, with_dynamic_batch
 from densepeds.detect.precomputed import PrecomputedDetector
 from densepeds.detect.tiling import (
+    PeopleTiles,
+    Perspective,
     auto_grid,
+    fit_perspective,
     make_tiles,
     merge_views,
     nms,
     parse_grid,
+    people_tiles,
 )
 from densepeds.detect.yoloseg import YoloSegDetector
 from densepeds.errors import InputError, ModelError, ParameterError
@@ -196,12 +200,14 @@ def test_dynamic_batch_copy_matches_per_tile_calls() -> None:
 
 def test_batched_views_equal_per_view_calls(yolo: YoloSegDetector, mot20_frames) -> None:
     frame = mot20_frames[100]
-    one_call = yolo(frame)
-    yolo.batch_views = False
+    yolo.tiles = "3x2"  # the same views in both calls ("auto" follows the first call's people)
     try:
+        one_call = yolo(frame)
+        yolo.batch_views = False
         per_view = yolo(frame)
     finally:
         yolo.batch_views = True
+        yolo.tiles = "auto"
     np.testing.assert_allclose(one_call.boxes, per_view.boxes, atol=1e-3)
     assert one_call.masks is not None and per_view.masks is not None
     assert all(np.array_equal(a, b) for a, b in zip(one_call.masks, per_view.masks, strict=True))
@@ -397,3 +403,109 @@ def test_dequantized_copy_folds_weights_and_drops_activation_rounding() -> None:
     reference = np.einsum("oc,nchw->nohw", weights[:, :, 0, 0] * w_scale[:, None], x)
     np.testing.assert_allclose(exact, reference, rtol=1e-5, atol=1e-6)
     assert np.abs(quant - exact).max() <= act_scale / 2 + 1e-6
+
+
+# --- tiles that follow the people (no data needed) --------------------------------------------
+def perspective_people(a: float, b: float, feet: np.ndarray, width: int) -> np.ndarray:
+    """Boxes of people standing at foot rows ``feet``, height a + b * foot, spread over x."""
+    h = a + b * feet
+    x = np.linspace(0, width - 0.4 * h.max(), len(feet))
+    return np.c_[x, feet - h, x + 0.4 * h, feet]
+
+
+def test_fit_perspective_recovers_the_line_despite_outliers() -> None:
+    rng = np.random.default_rng(0)
+    feet = rng.uniform(200, 540, 80)
+    boxes = perspective_people(-30.0, 0.3, feet, 960)
+    boxes[:, 1] -= rng.normal(0, 1.0, len(boxes))  # a pixel of noise
+    parts = perspective_people(-30.0, 0.3, feet[:8], 960)
+    parts[:, 1] = parts[:, 3] - 0.3 * (parts[:, 3] - parts[:, 1])  # 8 people seen in part
+    p = fit_perspective(np.r_[boxes, parts])
+    assert p is not None
+    ref = np.polyfit(feet, boxes[:, 3] - boxes[:, 1], 1)  # the clean people alone
+    assert abs(p.b - ref[0]) < 0.01 and abs(p.a - ref[1]) < 3
+    # Held inside the rows seen (extended upwards by two person heights): no extrapolation.
+    assert p.height(-1000) == p.height(p.y_lo) and p.height(5000) == p.height(p.y_hi)
+    assert p.y_lo < np.percentile(feet, 5)
+    assert fit_perspective(boxes[:5]) is None  # too few people
+    # Nearer people smaller: not a ground plane; the median height everywhere.
+    flipped = perspective_people(200.0, -0.3, feet, 960)
+    q = fit_perspective(flipped)
+    assert q is not None and q.b == 0
+    assert q.a == pytest.approx(np.median(flipped[:, 3] - flipped[:, 1]))
+
+
+@pytest.mark.parametrize(
+    ("a", "b", "width", "height"), [(-30, 0.3, 960, 540), (25, 0.18, 768, 576)]
+)
+def test_people_tiles_keep_everybody_whole_at_their_share(
+    a: float, b: float, width: int, height: int
+) -> None:
+    p = Perspective(a, b, 150.0, float(height))
+    share, input_size = 0.25, 320
+    tiles = people_tiles(width, height, input_size, p, share, max_tiles=100, max_scale=3.0)
+    covered = np.zeros((height, width), int)
+    for t in tiles:
+        covered[t.y0 : t.y1, t.x0 : t.x1] += 1
+        # Interior edges are the ones inside the frame.
+        assert t.interior == (t.x0 > 0, t.y0 > 0, t.x1 < width, t.y1 < height)
+    assert covered.min() >= 1
+    # Every person (feet on any row, anywhere across) is whole in some tile that shows them
+    # at about their share of the input or more (magnified at most 3x).
+    for foot in np.arange(p.height(0.0) + 1, height + 1, 7.0):
+        h = p.height(foot)
+        for x in np.arange(0, width - 0.4 * h, 23.0):
+            box = (x, foot - h, x + 0.4 * h, foot)
+            sizes = [
+                h * input_size / max(t.x1 - t.x0, t.y1 - t.y0)
+                for t in tiles
+                if t.x0 <= box[0] and t.y0 <= box[1] and box[2] <= t.x1 and box[3] <= t.y1
+            ]
+            assert sizes, (box, tiles)
+            assert max(sizes) >= 0.8 * min(share * input_size, 3.0 * h)
+    # Far rows get smaller (more magnified) tiles than near ones.
+    sides = {t.y0: t.x1 - t.x0 for t in tiles}
+    ordered = [sides[y] for y in sorted(sides)]
+    assert ordered == sorted(ordered) and ordered[0] < ordered[-1]
+
+
+def test_people_tiles_cap_the_cost_and_skip_tiling_big_people() -> None:
+    p = Perspective(-30.0, 0.3, 150.0, 540.0)
+    many = people_tiles(960, 540, 320, p, 0.4, max_tiles=100, max_scale=3.0)
+    capped = people_tiles(960, 540, 320, p, 0.4, max_tiles=9, max_scale=3.0)
+    assert len(many) > 9 >= len(capped) > 1
+    # People already at their share in the whole frame: one view, no tiles.
+    assert people_tiles(640, 480, 320, Perspective(300.0, 0.0), 0.25, 12, 3.0) == []
+
+
+def test_people_tiles_start_from_the_grid_then_follow_the_people() -> None:
+    planner = PeopleTiles(320, person_share=0.25, max_tiles=100, max_scale=3.0)
+    first = planner.tiles(960, 540)
+    assert first == make_tiles(960, 540, *auto_grid(960, 540, 320))
+    feet = np.linspace(250, 540, 30)
+    small = perspective_people(-30.0, 0.3, feet, 960)
+    planner.observe(small, np.full(len(small), 0.9), 960, 540)
+    assert planner.perspective is not None and planner.perspective.b == pytest.approx(0.3)
+    # Unsure detections are not people to follow.
+    unsure = PeopleTiles(320, 0.25, 100, 3.0)
+    unsure.observe(small, np.full(len(small), 0.1), 960, 540)
+    assert unsure.perspective is None and unsure.tiles(960, 540) == first
+    # Twice as tall people: fewer, larger tiles.
+    big = PeopleTiles(320, 0.25, 100, 3.0)
+    big.observe(perspective_people(-60.0, 0.6, feet, 960), np.full(len(small), 0.9), 960, 540)
+    assert len(big.tiles(960, 540)) < len(planner.tiles(960, 540))
+    # Another frame size is another video: the grid again, then its own people.
+    assert planner.tiles(768, 576) == make_tiles(768, 576, *auto_grid(768, 576, 320))
+    planner.observe(small[:3], np.full(3, 0.9), 768, 576)
+    assert planner.perspective is None
+    planner.reset()
+    assert planner.tiles(960, 540) == first
+
+
+def test_yoloseg_auto_tiles_follow_its_detections(tmp_path: Path) -> None:
+    det = make_detector("yoloseg", tiny_yoloseg(tmp_path / "y.onnx"), threads=1)
+    assert isinstance(det, YoloSegDetector)
+    frame = np.zeros((128, 256, 3), np.uint8)
+    det(frame)
+    assert det.last_views == len(det.people_tiles.tiles(256, 128)) or det.last_views == 1
+    assert det.people_tiles._seen and len(det.people_tiles._seen[0]) >= 1

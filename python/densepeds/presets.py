@@ -71,8 +71,9 @@ class Preset:
 _CNN_DETECTION: dict[str, float] = {
     # Shorter boxes are mostly clutter (signs, bags, parts of people) that OSNet cannot tell
     # apart: dropping them is the main gain on PETS09; it also drops the 0.4% of MOT20-01's
-    # ground-truth boxes that are smaller (the smallest is 17 px).
-    "min_height": 32,
+    # ground-truth boxes that are smaller (the smallest is 17 px). Chosen over 28-40 px on the
+    # four video cells with the people-following tiles (benchmarks/results/accuracy-loo.md).
+    "min_height": 36,
     # Tile duplicates: the detector's cross-tile NMS keeps box overlaps up to IoU 0.6, and box
     # IoU alone cannot separate a duplicate from two people in a crowd (occluder, occluded):
     # suppress when the masks coincide instead (box IoU > 0.3 and > 60% of the smaller mask on

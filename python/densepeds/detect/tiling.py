@@ -3,6 +3,11 @@
 A 320 px model sees a 1080p crowd at a sixth of its size and misses most people; running it on
 overlapping tiles (plus the whole frame, for people larger than a tile) recovers them. Merging
 drops boxes cut by an interior tile edge when another view sees the person whole, then runs NMS.
+
+``PeopleTiles`` (YoloSegDetector's "auto" tiles) chooses the tiles from the people themselves:
+it fits person height against foot position (the perspective of a camera above the ground) on
+the detections of recent frames and cuts each band of rows so that a person there spans a set
+share of the network input: small, far people get small (magnified) tiles, near ones large.
 """
 
 from __future__ import annotations
@@ -21,6 +26,8 @@ TilesSpec = str | int | tuple[int, int] | None
 
 OVERLAP = 0.2  # fraction of a tile shared with each neighbour
 CUT_MARGIN = 3.0  # px (frame scale): a box this close to an interior tile edge is "cut"
+# The detector settings read only by the people-following rule (the yoloseg "auto" tiles).
+PEOPLE_SETTINGS = ("person_share", "max_tiles", "max_scale")
 
 
 @dataclass(frozen=True)
@@ -36,7 +43,8 @@ class Tile:
 
 
 def parse_grid(tiles: TilesSpec, width: int, height: int, input_size: int) -> tuple[int, int]:
-    """(columns, rows) from the user's spec: None/1/"none" = one pass, "auto", (c, r), "CxR"."""
+    """(columns, rows) from the user's spec: None/1/"none" = one pass, "auto", (c, r), "CxR".
+    ("auto" here is the fixed grid; YoloSegDetector starts from it, then follows the people.)"""
     if tiles is None or tiles == 1 or tiles == "none":
         return 1, 1
     if tiles == "auto":
@@ -146,3 +154,172 @@ def merge_views(
     # Whole boxes rank above cut ones at equal footing; score breaks ties within each group.
     priority = scores[idx].astype(np.float64) - np.where(cut[idx], 1e6, 0.0)
     return idx[nms(boxes[idx], priority, iou_threshold)]
+
+
+# --- tiles that follow the people ------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Perspective:
+    """Person height (px) against foot row y (px): ``height(y) = a + b * y`` with b >= 0, y
+    held inside [y_lo, y_hi]: the rows where feet were seen, extended upwards by two person
+    heights (the farthest people are the ones a detector misses; beyond that, no guess)."""
+
+    a: float
+    b: float
+    y_lo: float = -math.inf
+    y_hi: float = math.inf
+
+    def height(self, y: float) -> float:
+        return max(self.a + self.b * min(max(y, self.y_lo), self.y_hi), 1.0)
+
+
+def fit_perspective(boxes: FloatArray, min_people: int = 10) -> Perspective | None:
+    """Least-squares line of box height on foot row, refit without outliers (boxes off the
+    line by more than 2.5 median absolute deviations: parts of people, merged pairs); None with
+    fewer than ``min_people`` boxes. A negative slope (nearer people smaller) is not a
+    ground-plane view: the median height is used for every row instead."""
+    if len(boxes) < min_people:
+        return None
+    foot = boxes[:, 3].astype(np.float64)
+    h = (boxes[:, 3] - boxes[:, 1]).astype(np.float64)
+    keep = np.ones(len(h), bool)
+    b, a = 0.0, float(np.median(h))
+    for _ in range(2):
+        if np.ptp(foot[keep]) > 0:
+            b, a = (float(v) for v in np.polyfit(foot[keep], h[keep], 1))
+        resid = h - (a + b * foot)
+        mad = float(np.median(np.abs(resid[keep]))) or 1.0
+        keep = np.abs(resid) <= 2.5 * mad
+        if keep.sum() < min_people:
+            break
+    lo, hi = (float(v) for v in np.percentile(foot, [5, 95]))
+    if b < 0:
+        return Perspective(float(np.median(h)), 0.0, lo, hi)
+    # Two person heights above the farthest feet seen: y = lo - 2 * (a + b * y).
+    lo = max((lo - 2 * a) / (1 + 2 * b), 0.0)
+    return Perspective(a, b, lo, hi)
+
+
+def people_tiles(
+    width: int,
+    height: int,
+    input_size: int,
+    perspective: Perspective,
+    person_share: float,
+    max_tiles: int,
+    max_scale: float,
+) -> list[Tile]:
+    """Square tiles in bands of rows from the top (the last band cut at the frame's bottom). A
+    band's side makes the smallest person whole in it (head at the band's top) span
+    ``person_share`` of the input (magnified at most ``max_scale``, never larger than the
+    frame); bands and columns overlap by the local person height so that everybody is whole in
+    some tile. Where that needs more than ``max_tiles``
+    tiles, people get a smaller share until it fits. An empty list: the whole frame in one
+    view already gives people their share."""
+    share = person_share
+    while True:
+        tiles = _people_tiles(width, height, input_size, perspective, share, max_scale)
+        if len(tiles) <= max_tiles:
+            return tiles
+        share *= 0.9
+
+
+def _people_tiles(
+    width: int,
+    height: int,
+    input_size: int,
+    persp: Perspective,
+    share: float,
+    max_scale: float,
+) -> list[Tile]:
+    smallest = input_size / max_scale
+    largest = float(max(width, height))
+    bands: list[tuple[int, int, int, float]] = []  # (y0, y1, tile width, overlap)
+    y0 = 0.0
+    while True:
+        foot = y0
+        for _ in range(3):  # the person whose head is at y0: feet at y0 + their height
+            foot = y0 + persp.height(foot)
+        side = min(max(persp.height(foot) / share, smallest), largest)
+        if y0 == 0 and side >= height and side >= width:
+            return []
+        y1 = min(y0 + side, float(height))
+        overlap = min(persp.height(y1), side / 2)
+        bands.append((round(y0), round(y1), round(side), overlap))
+        if y1 >= height:
+            break
+        y0 = y1 - overlap
+    tiles = []
+    for ty0, ty1, side, overlap in bands:
+        if side >= width:
+            xs = [(0, width)]
+        else:
+            cols = math.ceil((width - overlap) / (side - overlap))
+            step = (width - side) / (cols - 1)
+            xs = [(round(i * step), round(i * step) + side) for i in range(cols)]
+            xs[-1] = (width - side, width)
+        for tx0, tx1 in xs:
+            interior = (tx0 > 0, ty0 > 0, tx1 < width, ty1 < height)
+            tiles.append(Tile(tx0, ty0, tx1, ty1, interior))
+    return tiles
+
+
+class PeopleTiles:
+    """Chooses each frame's tiles from the people detected in the last ``window`` frames.
+
+    ``tiles(width, height)`` gives the views for the next frame: ``auto_grid``'s tiles until
+    ``min_people`` confident detections (score >= ``min_score``) have been seen, then
+    ``people_tiles`` on the perspective fitted to them; ``observe`` feeds a frame's detections
+    (a frame of another size starts over: another video).
+    """
+
+    def __init__(
+        self,
+        input_size: int,
+        person_share: float,
+        max_tiles: int,
+        max_scale: float,
+        window: int = 25,
+        min_score: float = 0.4,
+        min_people: int = 10,
+    ) -> None:
+        self.input_size = input_size
+        self.person_share = person_share
+        self.max_tiles = max_tiles
+        self.max_scale = max_scale
+        self.window = window
+        self.min_score = min_score
+        self.min_people = min_people
+        self._seen: list[FloatArray] = []
+        self._size = (0, 0)
+        self.perspective: Perspective | None = None
+
+    def tiles(self, width: int, height: int) -> list[Tile]:
+        if self.perspective is None or (width, height) != self._size:
+            cols, rows = auto_grid(width, height, self.input_size)
+            return make_tiles(width, height, cols, rows) if cols * rows > 1 else []
+        return people_tiles(
+            width,
+            height,
+            self.input_size,
+            self.perspective,
+            self.person_share,
+            self.max_tiles,
+            self.max_scale,
+        )
+
+    def observe(
+        self, boxes: FloatArray, scores: npt.NDArray[np.floating], width: int, height: int
+    ) -> None:
+        if (width, height) != self._size:
+            self.reset()
+            self._size = (width, height)
+        self._seen.append(np.asarray(boxes, np.float64)[np.asarray(scores) >= self.min_score])
+        del self._seen[: -self.window]
+        self.perspective = fit_perspective(np.concatenate(self._seen), self.min_people)
+
+    def reset(self) -> None:
+        self._seen.clear()
+        self._size = (0, 0)
+        self.perspective = None

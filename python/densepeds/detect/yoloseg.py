@@ -19,7 +19,15 @@ import numpy as np
 import numpy.typing as npt
 
 from densepeds.detect import onnxutil
-from densepeds.detect.tiling import Tile, TilesSpec, cut_flags, make_tiles, merge_views, parse_grid
+from densepeds.detect.tiling import (
+    PeopleTiles,
+    Tile,
+    TilesSpec,
+    cut_flags,
+    make_tiles,
+    merge_views,
+    parse_grid,
+)
 from densepeds.errors import ModelError, ParameterError
 from densepeds.frames import check_frame
 from densepeds.modelfiles import quantized_file_name
@@ -79,6 +87,13 @@ class YoloSegDetector:
     requires it, False never runs it; ``path`` is the file run, ``quantized`` (attribute)
     whether it is such a copy (benchmarks/results/int8.md has its speed and accuracy). A frame
     too small for tiles is always seen whole.
+
+    ``tiles="auto"`` (default) chooses each frame's tiles from the people found in the last
+    frames (``densepeds.detect.tiling.PeopleTiles``; ``auto_grid``'s fixed grid until enough
+    are seen): bands of square tiles sized so that a person there spans ``person_share`` of
+    the input, magnified at most ``max_scale``, at most ``max_tiles`` views a frame; a fixed
+    grid is given as "CxR". ``benchmarks/detector_recall.py`` measures recall and views per
+    choice.
     """
 
     def __init__(
@@ -95,6 +110,9 @@ class YoloSegDetector:
         person_class: int = 0,
         dequantize: bool = True,
         quantized: bool | None = None,
+        person_share: float = 0.25,
+        max_tiles: int = 12,
+        max_scale: float = 3.0,
     ) -> None:
         if not 0.0 <= score_threshold <= 1.0:
             raise ParameterError(f"score_threshold must be in [0, 1], got {score_threshold}")
@@ -115,7 +133,11 @@ class YoloSegDetector:
         self.batch_views = batch_views
         # Seconds spent per stage (preprocess, inference, boxes, masks), for benchmarks.
         self.stage_seconds: dict[str, float] = {}
+        self.last_views = 0  # views (tiles) of the last frame
         self._read_contract()
+        self.people_tiles = PeopleTiles(
+            max(self.input_w, self.input_h), person_share, max_tiles, max_scale
+        )
 
     # --- model contract -------------------------------------------------------------------
     def _read_contract(self) -> None:
@@ -190,9 +212,12 @@ class YoloSegDetector:
 
     # --- detection --------------------------------------------------------------------------
     def views(self, width: int, height: int) -> list[_View]:
-        cols, rows = parse_grid(self.tiles, width, height, max(self.input_w, self.input_h))
         whole = Tile(0, 0, width, height, (False, False, False, False))
-        tiles = make_tiles(width, height, cols, rows) if cols * rows > 1 else []
+        if self.tiles == "auto":
+            tiles = self.people_tiles.tiles(width, height)
+        else:
+            cols, rows = parse_grid(self.tiles, width, height, max(self.input_w, self.input_h))
+            tiles = make_tiles(width, height, cols, rows) if cols * rows > 1 else []
         regions = [(t, True) for t in tiles]
         if not tiles or self.full_frame:
             regions.append((whole, False))
@@ -218,11 +243,14 @@ class YoloSegDetector:
         height, width = frame.shape[:2]
         clock = time.perf_counter()
         views = self.views(width, height)
+        self.last_views = len(views)
         batch = self.letterbox(frame, views)
         clock = self._tick("preprocess", clock)
         preds, protos = self._infer(batch)
         clock = self._tick("inference", clock)
         found = self.candidates(preds, views, width, height)
+        if self.tiles == "auto":
+            self.people_tiles.observe(found.boxes, found.scores, width, height)
         dets = Detections(found.boxes.astype(np.float32), found.scores)
         clock = self._tick("boxes", clock)
         if self.with_masks and len(found.boxes):
