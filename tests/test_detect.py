@@ -478,6 +478,20 @@ def test_people_tiles_cap_the_cost_and_skip_tiling_big_people() -> None:
     assert people_tiles(640, 480, 320, Perspective(300.0, 0.0), 0.25, 12, 3.0) == []
 
 
+def test_people_tiles_cost_at_most_twice_the_grid() -> None:
+    """Small people on a small frame would ask for many magnified tiles: the grid caps them."""
+    from densepeds.detect.tiling import GRID_MULTIPLE
+
+    feet = np.linspace(150, 576, 30)
+    small = perspective_people(-20.0, 0.2, feet, 768)
+    wanted = people_tiles(768, 576, 320, fit_perspective(small), 0.25, 100, 3.0)
+    planner = PeopleTiles(320, person_share=0.25, max_tiles=100, max_scale=3.0)
+    planner.observe(small, np.full(len(small), 0.9), 768, 576)
+    cols, rows = auto_grid(768, 576, 320)
+    assert len(wanted) > GRID_MULTIPLE * cols * rows
+    assert 1 < len(planner.tiles(768, 576)) <= GRID_MULTIPLE * cols * rows
+
+
 def test_people_tiles_start_from_the_grid_then_follow_the_people() -> None:
     planner = PeopleTiles(320, person_share=0.25, max_tiles=100, max_scale=3.0)
     first = planner.tiles(960, 540)
@@ -490,9 +504,9 @@ def test_people_tiles_start_from_the_grid_then_follow_the_people() -> None:
     unsure = PeopleTiles(320, 0.25, 100, 3.0)
     unsure.observe(small, np.full(len(small), 0.1), 960, 540)
     assert unsure.perspective is None and unsure.tiles(960, 540) == first
-    # Twice as tall people: fewer, larger tiles.
+    # Three times as tall people: fewer, larger tiles.
     big = PeopleTiles(320, 0.25, 100, 3.0)
-    big.observe(perspective_people(-60.0, 0.6, feet, 960), np.full(len(small), 0.9), 960, 540)
+    big.observe(perspective_people(-90.0, 0.9, feet, 960), np.full(len(small), 0.9), 960, 540)
     assert len(big.tiles(960, 540)) < len(planner.tiles(960, 540))
     # Another frame size is another video: the grid again, then its own people.
     assert planner.tiles(768, 576) == make_tiles(768, 576, *auto_grid(768, 576, 320))

@@ -28,6 +28,9 @@ OVERLAP = 0.2  # fraction of a tile shared with each neighbour
 CUT_MARGIN = 3.0  # px (frame scale): a box this close to an interior tile edge is "cut"
 # The detector settings read only by the people-following rule (the yoloseg "auto" tiles).
 PEOPLE_SETTINGS = ("person_share", "max_tiles", "max_scale")
+# The people's tiles cost at most this many times the views of the frame's fixed grid
+# (auto_grid): on small frames the people's share would otherwise ask for many magnified tiles.
+GRID_MULTIPLE = 2
 
 
 @dataclass(frozen=True)
@@ -270,7 +273,8 @@ class PeopleTiles:
 
     ``tiles(width, height)`` gives the views for the next frame: ``auto_grid``'s tiles until
     ``min_people`` confident detections (score >= ``min_score``) have been seen, then
-    ``people_tiles`` on the perspective fitted to them; ``observe`` feeds a frame's detections
+    ``people_tiles`` on the perspective fitted to them, at most ``max_tiles`` and at most
+    ``GRID_MULTIPLE`` times the grid's views; ``observe`` feeds a frame's detections
     (a frame of another size starts over: another video).
     """
 
@@ -296,8 +300,8 @@ class PeopleTiles:
         self.perspective: Perspective | None = None
 
     def tiles(self, width: int, height: int) -> list[Tile]:
+        cols, rows = auto_grid(width, height, self.input_size)
         if self.perspective is None or (width, height) != self._size:
-            cols, rows = auto_grid(width, height, self.input_size)
             return make_tiles(width, height, cols, rows) if cols * rows > 1 else []
         return people_tiles(
             width,
@@ -305,7 +309,7 @@ class PeopleTiles:
             self.input_size,
             self.perspective,
             self.person_share,
-            self.max_tiles,
+            min(self.max_tiles, GRID_MULTIPLE * cols * rows),
             self.max_scale,
         )
 

@@ -91,9 +91,9 @@ class YoloSegDetector:
     ``tiles="auto"`` (default) chooses each frame's tiles from the people found in the last
     frames (``densepeds.detect.tiling.PeopleTiles``; ``auto_grid``'s fixed grid until enough
     are seen): bands of square tiles sized so that a person there spans ``person_share`` of
-    the input, magnified at most ``max_scale``, at most ``max_tiles`` views a frame; a fixed
-    grid is given as "CxR". ``benchmarks/detector_recall.py`` measures recall and views per
-    choice.
+    the input, magnified at most ``max_scale``, at most ``max_tiles`` views a frame and at most
+    twice the fixed grid's (``tiling.GRID_MULTIPLE``); a fixed grid is given as "CxR".
+    ``benchmarks/detector_recall.py`` measures recall and views per choice.
     """
 
     def __init__(
