@@ -428,3 +428,17 @@ def test_eval_benchmark_option(capsys: pytest.CaptureFixture[str], tmp_path: Pat
         runs[bench] = json.loads(out)
     assert runs["auto"] == runs["MOT15"] and runs["MOT15"]["benchmarks"][seq.name] == "MOT15"
     assert runs["MOT15"]["combined"]["FP"] == 0  # the tracks are gt boxes
+
+
+def test_tiles_option(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """--tiles reaches the detector; a bad grid or a run without a detector is one line."""
+    seq = shared_path("data", "PETS09-S2L1-dev")
+    out = tmp_path / "t.txt"
+    rc, _, err = _run(capsys, "run", str(seq), "--frames", "1:3", "--tiles", "2x2", "-q")
+    _one_line_error(rc, err, "--tiles", "--detector yoloseg")
+    base = ("run", str(seq), "--detector", "yoloseg", "--frames", "1:2", "--out", str(out), "-q")
+    rc, _, err = _run(capsys, *base, "--tiles", "9q")
+    _one_line_error(rc, err, "tiles", "9q")
+    rc, _, err = _run(capsys, *base, "--tiles", "2x2")
+    assert rc == 0, err
+    assert out.exists()

@@ -523,3 +523,20 @@ def test_yoloseg_auto_tiles_follow_its_detections(tmp_path: Path) -> None:
     det(frame)
     assert det.last_views == len(det.people_tiles.tiles(256, 128)) or det.last_views == 1
     assert det.people_tiles._seen and len(det.people_tiles._seen[0]) >= 1
+
+
+def test_a_pipeline_starts_its_detector_afresh(tmp_path: Path) -> None:
+    """A loaded detector handed to a new pipeline (a batch's next input) or a pipeline reset
+    forgets the people of the last sequence, so every video starts from the fixed grid."""
+    from densepeds.pipeline import Pipeline
+
+    det = make_detector("yoloseg", tiny_yoloseg(tmp_path / "y.onnx"), threads=1)
+    assert isinstance(det, YoloSegDetector)
+    det(np.zeros((128, 256, 3), np.uint8))
+    assert det.people_tiles._seen
+    pipe = Pipeline(det, features="none")
+    assert not det.people_tiles._seen
+    pipe.step(np.zeros((128, 256, 3), np.uint8))
+    assert det.people_tiles._seen
+    pipe.reset()
+    assert not det.people_tiles._seen

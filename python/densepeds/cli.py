@@ -130,6 +130,13 @@ def build_parser() -> argparse.ArgumentParser:
         "frames and no det file)",
     )
     run.add_argument("--detector-model", metavar="PATH", help=DETECTOR_MODEL_HELP)
+    run.add_argument(
+        "--tiles",
+        metavar="auto|CxR|none",
+        help="the CNN detector's views of a frame: auto (default) tiles that follow the people "
+        "(at most twice the fixed grid's views); CxR a fixed grid of overlapping tiles, e.g. 3x2 "
+        "(faster, fewer people found in crowds); none the whole frame in one view",
+    )
     run.add_argument("--reid-model", metavar="PATH", help=REID_MODEL_HELP)
     run.add_argument(
         "--motion",
@@ -541,6 +548,12 @@ def open_run(args: argparse.Namespace, models: Any = None) -> tuple[Any, Any, An
         raise ParameterError(
             f"--features {features} needs frames, and {args.input} has none (use --features none)"
         )
+    tiles = getattr(args, "tiles", None)
+    if tiles is not None and (detector is None or args.detections is not None):
+        raise ParameterError(
+            "--tiles sets the CNN detector's views, and this run tracks detections from a file "
+            "(add --detector yoloseg to detect)"
+        )
     # Read the det file and load the models before tracking, so that mistakes surface at once.
     dets: Any = read_detections(args.detections) if args.detections else None
     detector_spec: Any = detector
@@ -558,6 +571,7 @@ def open_run(args: argparse.Namespace, models: Any = None) -> tuple[Any, Any, An
         motion=args.motion,
         features=features,
         detector_model=args.detector_model,
+        detector_options=None if tiles is None else {"tiles": tiles},
         preset=preset,
         **dict(args.param),
     )

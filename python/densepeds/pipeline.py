@@ -217,6 +217,8 @@ class Pipeline:
             raise ParameterError("detector must be None, 'yoloseg', 'maskrcnn' or a callable")
         self._detector_spec = detector
         self._detector: Any = None if isinstance(detector, str) else detector
+        if self._detector is not None and hasattr(self._detector, "reset"):
+            self._detector.reset()  # a loaded detector shared by a batch starts a new sequence
         self._detector_model = detector_model
         self._detector_options = dict(detector_options or {})
         self._reid_spec = reid
@@ -283,8 +285,11 @@ class Pipeline:
     # --- one frame ------------------------------------------------------------------------------
 
     def reset(self) -> None:
-        """Forget all tracks (start a new sequence); the models stay loaded."""
+        """Forget all tracks (start a new sequence); the models stay loaded, the detector forgets
+        what it learnt of the last sequence (e.g. where its people are)."""
         self.tracker.reset()
+        if self._detector is not None and hasattr(self._detector, "reset"):
+            self._detector.reset()
         self.times = StageTimes()
 
     def process(

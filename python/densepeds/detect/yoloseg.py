@@ -238,6 +238,10 @@ class YoloSegDetector:
             )
         return batch
 
+    def reset(self) -> None:
+        """Forget the people seen (another video starts): its first frames get the fixed grid."""
+        self.people_tiles.reset()
+
     def __call__(self, frame: npt.NDArray[np.uint8]) -> Detections:
         check_frame(frame)
         height, width = frame.shape[:2]
