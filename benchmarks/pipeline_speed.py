@@ -35,7 +35,6 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 REPO = Path(__file__).resolve().parent.parent
 SHARED = Path(os.environ.get("DENSEPEDS_SHARED", REPO.parent / "shared"))
@@ -43,7 +42,6 @@ SHARED = Path(os.environ.get("DENSEPEDS_SHARED", REPO.parent / "shared"))
 os.environ.setdefault("DENSEPEDS_MODEL_DIR", str(SHARED / "models"))
 STAGE_RE = re.compile(r"([a-z]+) ([0-9.]+)")
 REUSE_CHILD = "--child-run-with-reuse"
-GRID_CHILD = "--child-run-on-grid"  # then the grid, e.g. 3x2, then `densepeds run`'s arguments
 DETECTOR_INPUT = 320  # the shared segmenter's input size, which sets the automatic tiles
 
 
@@ -59,20 +57,6 @@ def _run_with_reuse(argv: list[str]) -> int:
         plain_init(self, *args, **kwargs)  # type: ignore[arg-type]
 
     reid.ReID.__init__ = init  # type: ignore[method-assign]
-    return cli_main(["run", *argv])
-
-
-def _run_on_grid(grid: str, argv: list[str]) -> int:
-    """`densepeds run ARGV` with the detector on the fixed ``grid`` of tiles (the reference's)."""
-    import densepeds.detect
-    from densepeds.cli import main as cli_main
-
-    plain = densepeds.detect.make_detector
-
-    def make(*args: Any, **kwargs: Any) -> Any:
-        return plain(*args, **{**kwargs, "tiles": grid})
-
-    densepeds.detect.make_detector = make  # type: ignore[assignment]
     return cli_main(["run", *argv])
 
 
@@ -179,16 +163,7 @@ def compare(
             *("--frames", frames, "--out", f"{tmp}/reference.txt"),
             *("--threads", str(args.threads), "--features", features, "--tiles", tiles),
         ],
-        "ours on the grid": [
-            *nice,
-            *pin,
-            sys.executable,
-            __file__,
-            GRID_CHILD,
-            tiles,
-            str(seq_dir),
-            *("--detector", "yoloseg", "--frames", frames, "--out", f"{tmp}/grid.txt", "-q"),
-        ],
+        "ours on the grid": [*run, "--tiles", tiles, "--out", f"{tmp}/grid.txt"],
         "ours+reuse": [
             *nice,
             *pin,
@@ -344,6 +319,4 @@ def main() -> int:
 if __name__ == "__main__":
     if len(sys.argv) > 1 and sys.argv[1] == REUSE_CHILD:
         sys.exit(_run_with_reuse(sys.argv[2:]))
-    if len(sys.argv) > 2 and sys.argv[1] == GRID_CHILD:
-        sys.exit(_run_on_grid(sys.argv[2], sys.argv[3:]))
     sys.exit(main())
