@@ -27,7 +27,10 @@ def run() -> int:
     finally:
         if saved is not None:
             signal.signal(signal.SIGINT, saved)
-    return main()
+    try:
+        return main()
+    except KeyboardInterrupt:  # raised after main() wrote its one line: the same exit status
+        return 130
 
 
 if __name__ == "__main__":
