@@ -2,7 +2,7 @@
 the peak after 100).
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/memory.py [--input VIDEO] [--frames 1:400] \
-        [--at 100,200,300,400]
+        [--at 100,200,300,400] [--write benchmarks/results/memory.md]
 
 Runs the package's pipeline with its defaults, as `densepeds run` does (detector, re-ID,
 tracker, every frame's tracks kept as output rows), over a video (default: the whole
@@ -66,6 +66,7 @@ def main() -> int:
         metavar="KEY=VALUE",
         help="override a detector default (e.g. dequantize=true)",
     )
+    ap.add_argument("--write", type=Path, help="also write the figures to this markdown file")
     args = ap.parse_args()
     options = dict(_option(text) for text in args.detector_option)
     checkpoints = sorted({int(v) for v in args.at.split(",")})
@@ -75,6 +76,7 @@ def main() -> int:
 
     if not args.input.exists():
         raise SystemExit(f"{args.input}: missing (set DENSEPEDS_SHARED to the shared data folder)")
+    load_before = os.getloadavg()
     src = open_source(args.input)
     start = time.perf_counter()
     pipe = Pipeline("yoloseg", detector_options=options)
@@ -96,19 +98,35 @@ def main() -> int:
             )
     if frames < max(checkpoints):
         print(f"note: the range held only {frames} frames", file=sys.stderr)
-    print("\n| frames | peak RSS MiB | RSS now MiB | output rows |")
-    print("|---:|---:|---:|---:|")
-    for n, peak, now, nrows in table:
-        print(f"| {n} | {peak:.0f} | {now:.0f} | {nrows} |")
+    lines = ["| frames | peak RSS MiB | RSS now MiB | output rows |", "|---:|---:|---:|---:|"]
+    lines += [f"| {n} | {peak:.0f} | {now:.0f} | {nrows} |" for n, peak, now, nrows in table]
     if len(table) >= 2:
         first, last = table[0], table[-1]
         growth = 100 * (last[1] / first[1] - 1)
-        print(
-            f"\npeak RSS after {last[0]} frames is {growth:+.1f}% of the peak after {first[0]} "
+        lines += [
+            "",
+            f"Peak RSS after {last[0]} frames is {growth:+.1f}% of the peak after {first[0]} "
             f"({args.input.name}, detector options {options or 'default'}, "
-            f"{pipe.times.fps:.2f} fps; "
-            f"{pipe.times.breakdown()})"
-        )
+            f"{pipe.times.fps:.2f} fps; {pipe.times.breakdown()}).",
+        ]
+    print("\n" + "\n".join(lines))
+    if args.write:
+        command = " ".join(["OPENBLAS_NUM_THREADS=1 python benchmarks/memory.py", *sys.argv[1:]])
+        header = [
+            "# Memory over a long run",
+            "",
+            "Written by this command (do not edit; rerun it):",
+            "",
+            f"    {command}",
+            "",
+            f"Machine: {os.cpu_count()} CPUs, load average before the run "
+            f"{'/'.join(f'{v:.1f}' for v in load_before)}, after it "
+            f"{'/'.join(f'{v:.1f}' for v in os.getloadavg())} (the frame rate depends on it, "
+            f"the memory does not); Python {sys.version.split()[0]}.",
+            "",
+        ]
+        args.write.write_text("\n".join(header + lines) + "\n")
+        print(f"wrote {args.write}")
     return 0
 
 
