@@ -173,7 +173,9 @@ def test_complex_arrays_are_refused_not_truncated(which: str) -> None:
 
 def test_boxes_up_to_the_coordinate_limit_are_tracked_as_small_ones() -> None:
     def ids_and_boxes(scale: float, motion: str) -> tuple[list[int], np.ndarray]:
-        t = Tracker(motion, n_init=1, output_lost=0)
+        # Reported boxes are the detections' (no pull toward the prediction, whose speed is
+        # capped at max_speed pixels a frame at any scale).
+        t = Tracker(motion, n_init=1, output_lost=0, position_smoothing=0.0)
         base = np.array([box(1.0, 1.0, 0.1, 0.3), box(1.12, 1.0, 0.1, 0.3)])
         for k in range(5):
             out = t.update(base * scale * (1 + 1e-3 * k), np.ones(2))
@@ -297,14 +299,15 @@ def _mot_det(path: Path, frames: int) -> dict[int, np.ndarray]:
 
 def test_real_detections_mot17_02_motion_only() -> None:
     det = shared_path("data", "MOT17-02-FRCNN", "det", "det.txt")
-    t = Tracker("frvo")
+    t = Tracker("frvo", position_smoothing=0.0)
     seen: dict[int, int] = {}
     for rows in _mot_det(det, 100).values():
         boxes = np.hstack([rows[:, 2:4], rows[:, 2:4] + rows[:, 4:6]])
         out = t.update(boxes, rows[:, 6])
         matched = out.det_index >= 0
 
-        # Matched tracks sit on their detection's centre (sizes are smoothed by default).
+        # Matched tracks sit on their detection's centre (sizes are smoothed by default;
+        # position_smoothing=0: no pull toward the prediction).
         def centres(b: np.ndarray) -> np.ndarray:
             return (b[:, :2] + b[:, 2:]) / 2
 

@@ -84,6 +84,7 @@ class TrackerKwargs(TypedDict, total=False):
     recovery_iou_threshold: float
     velocity_smoothing: float
     pref_window: int
+    position_smoothing: float
     size_smoothing: float
     ellipse_l_scale: float
     ellipse_w_scale: float
@@ -135,6 +136,7 @@ class Tracker:
         recovery_iou_threshold: float = 0.3,
         velocity_smoothing: float = 0.5,
         pref_window: int = 20,
+        position_smoothing: float = 0.3,
         size_smoothing: float = 0.5,
         ellipse_l_scale: float = 0.15,
         ellipse_w_scale: float = 0.15,

@@ -76,6 +76,12 @@ velocity_smoothing      float  0.5         [0, 1]               weight of the ne
                                                                 no smoothing)
 pref_window             int    20          >= 1                 frames of matched history the
                                                                 preferred velocity is averaged over
+position_smoothing      float  0.3         [0, 1)               weight of the predicted centre in
+                                                                the reported box of a track matched
+                                                                in this frame and the previous one
+                                                                (the track's state keeps the
+                                                                detection's centre; 0: the
+                                                                detection's centre)
 size_smoothing          float  0.5         [0, 1)               weight of the previous box size when
                                                                 a match updates it (0: the
                                                                 detection's size)

@@ -431,6 +431,8 @@ tracker_params! {
             "weight of the newly observed velocity in the velocity average (1: no smoothing)";
         pref_window: usize = 20, ints(1, USIZE_MAX),
             "frames of matched history the preferred velocity is averaged over";
+        position_smoothing: f64 = 0.3, closed_open(0.0, 1.0),
+            "weight of the predicted centre in the reported box of a track matched in this frame and the previous one (the track's state keeps the detection's centre; 0: the detection's centre)";
         size_smoothing: f64 = 0.5, closed_open(0.0, 1.0),
             "weight of the previous box size when a match updates it (0: the detection's size)";
         ellipse_l_scale: f64 = 0.15, POSITIVE,
@@ -491,11 +493,11 @@ fn unknown(name: &str) -> TrackError {
 
 impl TrackerParams {
     /// The DensePeds paper's plain tracker (appearance then FRVO-predicted IoU, each solved
-    /// optimally; no score thresholds, no second pass, no recovery, no size smoothing, only
-    /// matched tracks reported). Equivalent to the keyword arguments
+    /// optimally; no score thresholds, no second pass, no recovery, no size or position
+    /// smoothing, only matched tracks reported). Equivalent to the keyword arguments
     /// `det_threshold=-inf, new_track_threshold=-inf, second_pass=False, recovery=False,
-    /// size_smoothing=0, output_lost=0, occluded_output=0, score_scale="absolute",
-    /// score_quantile_floor=0`. Other fields keep their defaults.
+    /// size_smoothing=0, position_smoothing=0, output_lost=0, occluded_output=0,
+    /// score_scale="absolute", score_quantile_floor=0`. Other fields keep their defaults.
     pub fn pure() -> Self {
         Self {
             score_scale: ScoreScale::Absolute,
@@ -505,6 +507,7 @@ impl TrackerParams {
             second_pass: false,
             recovery: false,
             size_smoothing: 0.0,
+            position_smoothing: 0.0,
             output_lost: 0,
             occluded_output: 0,
             ..Self::default()

@@ -171,10 +171,18 @@ impl Track {
         };
         let s = p.size_smoothing;
         let (dw, dh) = (det[2] - det[0], det[3] - det[1]);
-        if s > 0.0 {
+        // The reported centre: the detection's, pulled toward this frame's prediction when the
+        // track was also matched in the previous frame (the state keeps the detection's).
+        let sp = if self.time_since_update == 0 && self.hits > 1 {
+            p.position_smoothing
+        } else {
+            0.0
+        };
+        if s > 0.0 || sp > 0.0 {
             self.w = s * self.w + (1.0 - s) * dw;
             self.h = s * self.h + (1.0 - s) * dh;
-            self.bbox = box_from_centre([c.x, c.y], self.w, self.h);
+            let shown = c * (1.0 - sp) + to_vec(centre(&self.predicted)) * sp;
+            self.bbox = box_from_centre([shown.x, shown.y], self.w, self.h);
         } else {
             (self.w, self.h) = (dw, dh);
             self.bbox = det;
