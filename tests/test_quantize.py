@@ -15,7 +15,7 @@ from densepeds import quantize
 from densepeds.boxes import iou_matrix
 from densepeds.cli import main
 from densepeds.detect.yoloseg import YoloSegDetector, choose_model
-from densepeds.errors import ModelError
+from densepeds.errors import ModelError, ParameterError
 from densepeds.modelfiles import ENV_VAR, MODELS, quantized_file_name, sha256_of
 from densepeds.video import open_source, parse_frame_range
 
@@ -183,3 +183,50 @@ def test_bad_calibration_is_one_line(capsys: pytest.CaptureFixture[str], tmp_pat
         rc = main(["models", "quantize", "--calibrate", spec, "--dir", str(tmp_path)])
         err = capsys.readouterr().err
         assert rc == 2 and len(err.strip().splitlines()) == 1, err
+
+
+def test_the_run_summary_names_the_int8_copy(
+    made: tuple[Path, Path],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    folder, _ = made
+    video = shared_path("data", "PETS09-S2L1-dev", "vtest.avi")
+    argv = ["run", str(video), "--detector", "yoloseg", "--frames", "1:2", "-q"]
+    copy = folder / quantized_file_name(YOLO.file)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    shared = shared_path("models", YOLO.file).parent  # the re-ID model; no int8 copy there
+    monkeypatch.setenv(ENV_VAR, f"{folder}:{shared}")  # the model and its copy: picked up unasked
+    assert main([*argv, "--out", str(tmp_path / "a.txt")]) == 0
+    assert f"; detector: int8 copy {copy}" in capsys.readouterr().out
+    alone = tmp_path / "alone"
+    alone.mkdir()
+    shutil.copyfile(folder / YOLO.file, alone / YOLO.file)
+    monkeypatch.setenv(ENV_VAR, f"{alone}:{shared}")  # no copy: the float copy runs, unsaid
+    assert main([*argv, "--out", str(tmp_path / "b.txt")]) == 0
+    assert "int8 copy" not in capsys.readouterr().out
+
+
+def test_options_are_checked_recorded_and_cached_ranges_reused(tmp_path: Path) -> None:
+    with pytest.raises(ParameterError, match="calibration must be one of"):
+        quantize.QuantOptions(calibration="entropy")
+    assert quantize.QuantOptions().describe() == "qdq U8S8 per-channel minmax"
+    model = shared_path("models", YOLO.file)
+    video = shared_path("data", "PETS09-S2L1-dev", "vtest.avi")
+    inputs = [quantize.parse_calibration(f"{video}{CALIBRATION}")]
+    options = quantize.QuantOptions(calibration="percentile", per_channel=False)
+    cache = tmp_path / "ranges.json"
+    first = quantize.quantize_detector(
+        model, tmp_path / "a.onnx", inputs, options=options, calibration_cache=cache
+    )
+    assert cache.is_file()
+    meta = quantize.metadata(first)
+    assert meta[quantize.META_FORMAT] == f"qdq U8S8 per-tensor percentile-{quantize.PERCENTILE}"
+    assert "3 frames" in meta[quantize.META_CALIBRATION]
+    # The ranges come from the cache the second time: the same file.
+    again = quantize.quantize_detector(
+        model, tmp_path / "b.onnx", inputs, options=options, calibration_cache=cache
+    )
+    assert sha256_of(again) == sha256_of(first)
+    assert quantize.metadata(again)[quantize.META_CALIBRATION] == meta[quantize.META_CALIBRATION]

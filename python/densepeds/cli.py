@@ -319,7 +319,7 @@ def _add_models_parser(sub: Any) -> None:
 
 
 def _add_quantize_parser(act: Any) -> None:
-    from densepeds.quantize import FORMATS
+    from densepeds.quantize import CALIBRATIONS, FORMATS, QuantOptions
 
     qu = act.add_parser(
         "quantize",
@@ -338,7 +338,18 @@ def _add_quantize_parser(act: Any) -> None:
         "every STEP-th of them (repeatable; e.g. crowd.mp4@1:400/8)",
     )
     qu.add_argument("--model", metavar="PATH", help="the detector model (default: yoloseg's)")
-    qu.add_argument("--format", choices=FORMATS, default="qdq", help="onnxruntime's graph form")
+    qu.add_argument(
+        "--format",
+        choices=FORMATS,
+        default=QuantOptions().quant_format,
+        help="onnxruntime's graph form",
+    )
+    qu.add_argument(
+        "--calibration",
+        choices=CALIBRATIONS,
+        default=QuantOptions().calibration,
+        help="activation ranges from their min/max (default) or a percentile of their magnitude",
+    )
     qu.add_argument(
         "--min-agreement",
         type=float,
@@ -493,8 +504,17 @@ def _summary(name: str, frames: int, n_ids: int, out: Path, pipe: Any, video: Pa
     extra = f" and {video}" if video else ""
     return (
         f"{name}: {frames} frames, {n_ids} tracks (preset {pipe.preset.name}) -> {out}{extra}; "
-        f"{_speed(t)}"
+        f"{_speed(t)}{_int8_note(pipe)}"
     )
+
+
+def _int8_note(pipe: Any) -> str:
+    """Names the detector file where it is the int8 copy (``densepeds models quantize``): the
+    detector picks one up from the model folders without being asked."""
+    if not pipe.has_detector or pipe.times.seconds.get("detection", 0) <= 0:
+        return ""
+    det = pipe.detector()
+    return f"; detector: int8 copy {det.path}" if getattr(det, "quantized", False) else ""
 
 
 def _speed(times: Any) -> str:
@@ -702,7 +722,10 @@ def _cmd_quantize(args: argparse.Namespace) -> int:
     dest = (args.dir or modelfiles.cache_dir()) / modelfiles.quantized_file_name(model)
     with tempfile.TemporaryDirectory(prefix="densepeds-quantize-") as tmp:
         made = quantize.quantize_detector(
-            model, Path(tmp) / dest.name, inputs, quant_format=args.format
+            model,
+            Path(tmp) / dest.name,
+            inputs,
+            options=quantize.QuantOptions(quant_format=args.format, calibration=args.calibration),
         )
         agree = quantize.check(model, made, inputs)
         print(

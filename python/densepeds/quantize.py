@@ -8,11 +8,13 @@ quantises that float copy again, this time in a form onnxruntime does fuse:
 1. the float copy (int8 weights folded to float, batch made dynamic);
 2. ``onnxruntime.quantization.shape_inference.quant_pre_process`` (shape inference, graph
    optimisation);
-3. ``onnxruntime.quantization.quantize_static``: unsigned 8-bit activations, signed 8-bit
-   weights per output channel (U8S8), min/max calibration on the letterboxed tiles of the
-   frames given, QDQ format by default. The head (its output convolutions, the box
-   distribution, score sigmoid, final concatenations and prototype activation) and the first
-   convolution stay float (:func:`float_nodes`): quantised, they cost tracking accuracy.
+3. ``onnxruntime.quantization.quantize_static`` with :class:`QuantOptions` (by default:
+   unsigned 8-bit activations, signed 8-bit weights per output channel (U8S8), min/max
+   calibration on the letterboxed tiles of the frames given, QDQ format). The head (its output
+   convolutions, the box distribution, score sigmoid, final concatenations and prototype
+   activation) and the first convolution are left out of quantisation (:func:`float_nodes`):
+   quantised, they cost tracking accuracy. (onnxruntime still runs the first convolution on
+   integers, weights quantised at load time, because its input is the quantised image.)
 
 The result records where it came from in its metadata (:data:`META_SOURCE` and the others): the
 source model's sha256, the calibration frames, the format and onnxruntime's version. The same
@@ -39,6 +41,9 @@ from densepeds.errors import ModelError, ParameterError
 from densepeds.video import FrameRange, open_source, parse_frame_range
 
 FORMATS = ("qdq", "qoperator")
+ACTIVATIONS = ("u8", "s8")
+CALIBRATIONS = ("minmax", "percentile")
+PERCENTILE = 99.999  # of |activation|, for ``calibration="percentile"``
 
 if TYPE_CHECKING:
     import onnx
@@ -97,6 +102,47 @@ def float_nodes(model: onnx.ModelProto) -> list[str]:
 
 
 @dataclass(frozen=True)
+class QuantOptions:
+    """onnxruntime static quantisation settings; the defaults are what ``densepeds models
+    quantize`` makes (``benchmarks/int8_speed.py`` measures the others).
+
+    ``quant_format``: QDQ (Quantize/Dequantize pairs that onnxruntime fuses into integer
+    kernels) or QOperator (QLinearConv and friends in the file). ``activations``: unsigned
+    ("u8": U8S8 with the signed weights, the form of x86 VNNI instructions) or signed ("s8").
+    ``per_channel``: one weight scale per output channel. ``reduce_range``: 7-bit weights.
+    ``symmetric_activations``: activation ranges centred on zero. ``calibration``: each
+    activation's range from its min/max over the calibration tiles, or from the
+    :data:`PERCENTILE` percentile of its magnitude (histograms; clips rare outliers).
+    """
+
+    quant_format: str = "qdq"
+    activations: str = "u8"
+    per_channel: bool = True
+    reduce_range: bool = False
+    symmetric_activations: bool = False
+    calibration: str = "minmax"
+
+    def __post_init__(self) -> None:
+        for name, allowed in (
+            ("quant_format", FORMATS),
+            ("activations", ACTIVATIONS),
+            ("calibration", CALIBRATIONS),
+        ):
+            if getattr(self, name) not in allowed:
+                raise ParameterError(
+                    f"{name} must be one of {allowed}, got {getattr(self, name)!r}"
+                )
+
+    def describe(self) -> str:
+        kinds = "U8S8" if self.activations == "u8" else "S8S8"
+        parts = [self.quant_format, kinds, "per-channel" if self.per_channel else "per-tensor"]
+        parts += ["reduce-range"] if self.reduce_range else []
+        parts += ["symmetric-activations"] if self.symmetric_activations else []
+        parts += [self.calibration if self.calibration == "minmax" else f"percentile-{PERCENTILE}"]
+        return " ".join(parts)
+
+
+@dataclass(frozen=True)
 class Calibration:
     """Frames to calibrate on: every ``step``-th frame of ``frames`` in the video ``path``."""
 
@@ -150,11 +196,17 @@ def quantize_detector(
     dest: Path,
     inputs: Sequence[Calibration],
     *,
-    quant_format: str = "qdq",
+    options: QuantOptions | None = None,
     tiles: str = "auto",
     threads: int | None = None,
+    calibration_cache: Path | None = None,
 ) -> Path:
-    """Write the int8 copy of yoloseg ``model`` to ``dest`` (see the module doc); returns dest."""
+    """Write the int8 copy of yoloseg ``model`` to ``dest`` (see the module doc); returns dest.
+
+    ``calibration_cache``: a file keeping the calibrated activation ranges (onnxruntime's); when
+    it exists, its ranges are used instead of running the float copy on the frames again (valid
+    only for the same model, frames, tiles and calibration method).
+    """
     import onnx
     from onnxruntime import __version__ as ort_version
     from onnxruntime.quantization import (
@@ -169,22 +221,27 @@ def quantize_detector(
     from densepeds.detect.yoloseg import YoloSegDetector
     from densepeds.modelfiles import sha256_of
 
-    if quant_format not in FORMATS:
-        raise ParameterError(f"format must be one of {FORMATS}, got {quant_format!r}")
+    opts = options or QuantOptions()
     if not inputs:
         raise ParameterError("quantisation needs at least one calibration video or folder")
     detector = YoloSegDetector(model, tiles=tiles, threads=threads, quantized=False)
     batches = calibration_batches(detector, inputs)
 
+    # Histogram calibration stacks its batches, so they must have one shape: one view each.
+    single = opts.calibration != "minmax"
+    pending: list[npt.NDArray[np.float32]] = []
+
     class Reader(CalibrationDataReader):  # type: ignore[misc]
-        count = 0
+        count = 0  # frames read
 
         def get_next(self) -> dict[str, npt.NDArray[np.float32]] | None:
-            batch = next(batches, None)
-            if batch is None:
-                return None
-            self.count += 1
-            return {detector.input_name: batch}
+            if not pending:
+                batch = next(batches, None)
+                if batch is None:
+                    return None
+                self.count += 1
+                pending.extend(np.split(batch, len(batch)) if single else [batch])
+            return {detector.input_name: pending.pop(0)}
 
     reader = Reader()
     with tempfile.TemporaryDirectory(prefix="densepeds-quantize-") as tmp_name:
@@ -197,13 +254,23 @@ def quantize_detector(
             str(tmp / "pre.onnx"),
             str(tmp / "int8.onnx"),
             reader,
-            quant_format=QuantFormat.QDQ if quant_format == "qdq" else QuantFormat.QOperator,
-            per_channel=True,
-            activation_type=QuantType.QUInt8,
+            quant_format=QuantFormat.QDQ if opts.quant_format == "qdq" else QuantFormat.QOperator,
+            per_channel=opts.per_channel,
+            reduce_range=opts.reduce_range,
+            activation_type=QuantType.QUInt8 if opts.activations == "u8" else QuantType.QInt8,
             weight_type=QuantType.QInt8,
-            calibrate_method=CalibrationMethod.MinMax,
+            calibrate_method=CalibrationMethod.MinMax
+            if opts.calibration == "minmax"
+            else CalibrationMethod.Percentile,
             nodes_to_exclude=float_nodes(pre),
+            extra_options={
+                "ActivationSymmetric": opts.symmetric_activations,
+                **({"CalibPercentile": PERCENTILE} if single else {}),
+            },
+            calibration_cache_path=calibration_cache,
         )
+        # With the ranges from the cache no frame was read; count them for the record.
+        reader.count = reader.count or sum(1 for _ in batches)
         if reader.count == 0:
             raise ParameterError("no calibration frames were read (check the frame ranges)")
         out = onnx.load(str(tmp / "int8.onnx"))
@@ -211,7 +278,7 @@ def quantize_detector(
     props[META_SOURCE] = sha256_of(model)
     described = "; ".join(c.describe() for c in inputs)
     props[META_CALIBRATION] = f"{described}; {reader.count} frames; tiles {tiles}"
-    props[META_FORMAT] = f"{quant_format} U8S8 per-channel minmax"
+    props[META_FORMAT] = opts.describe()
     props[META_ORT] = ort_version
     onnx.helper.set_model_props(out, props)
     dest.parent.mkdir(parents=True, exist_ok=True)
