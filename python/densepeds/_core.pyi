@@ -139,7 +139,7 @@ class Tracker:
         velocity_smoothing: float = 0.5,
         pref_window: int = 20,
         position_smoothing: float = 0.3,
-        jitter_floor: float = 0.0,
+        jitter_floor: float = 0.06,
         jitter_smoothing_state: bool = True,
         size_smoothing: float = 0.5,
         ellipse_l_scale: float = 0.15,

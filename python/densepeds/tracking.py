@@ -82,7 +82,7 @@ position_smoothing      float  0.3         [0, 1)               weight of the pr
                                                                 (the track's state keeps the
                                                                 detection's centre; 0: the
                                                                 detection's centre)
-jitter_floor            float  0.0         [0, inf]             adaptive smoothing: the innovation
+jitter_floor            float  0.06        [0, inf]             adaptive smoothing: the innovation
                                                                 motion alone explains (distance from
                                                                 a followed track's one-frame
                                                                 prediction to its matched detection,

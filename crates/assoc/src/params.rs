@@ -433,7 +433,7 @@ tracker_params! {
             "frames of matched history the preferred velocity is averaged over";
         position_smoothing: f64 = 0.3, closed_open(0.0, 1.0),
             "weight of the predicted centre in the reported box of a track matched in this frame and the previous one (the track's state keeps the detection's centre; 0: the detection's centre)";
-        jitter_floor: f64 = 0.0, closed(0.0, f64::INFINITY),
+        jitter_floor: f64 = 0.06, closed(0.0, f64::INFINITY),
             "adaptive smoothing: the innovation motion alone explains (distance from a followed track's one-frame prediction to its matched detection, over box height); with the mean innovation over all tracks so far above it, a followed track's matched centre gives weight 1 - (jitter_floor / mean)^2 to the prediction; velocities stay measured on the detections (0: off)";
         jitter_smoothing_state: bool = true, Range::Bool,
             "adaptive smoothing (jitter_floor) moves the track's state, which the next prediction starts from (false: only the reported box, as position_smoothing, the larger weight winning)";
