@@ -61,17 +61,20 @@ CANDIDATES: dict[str, dict[str, Any]] = {
     "amodal_boxes + ground_plane": {"amodal_boxes": True, "ground_plane": True},
     "position_smoothing 0": {"position_smoothing": 0.0},
     "position_smoothing 0.5": {"position_smoothing": 0.5},
+    "jitter_floor 0": {"jitter_floor": 0.0},
+    "jitter_floor 0.05": {"jitter_floor": 0.05},
+    "jitter_floor 0.07": {"jitter_floor": 0.07},
 }
 # What the package defaults were chosen on: update this where a default is tuned again.
 TUNED_ON = {
     "det": "the six `/det` cells together, motion only (the score reading, `score_scale` and "
-    "`score_quantile_floor`, `output_lost_adaptive` and `position_smoothing` on all 15 cells by "
-    "leave-one-out, the `/frcnn` and `/int8` ones included)",
+    "`score_quantile_floor`, `output_lost_adaptive`, `position_smoothing` and `jitter_floor` on "
+    "all 15 cells by leave-one-out, the `/frcnn` and `/int8` ones included)",
     "cnn": "the two `/float` videos together (the score reading as above)",
 }
 UNTUNED = (
-    "every `/frcnn` and `/int8` cell for all but the score reading, `output_lost_adaptive` and "
-    "`position_smoothing`"
+    "every `/frcnn` and `/int8` cell for all but the score reading, `output_lost_adaptive`, "
+    "`position_smoothing` and `jitter_floor`"
 )
 MOTION_ROWS = ("frvo", "rvo", "sf", "cv")
 FEATURE_ROWS = ("segmented", "bbox", "masked_pool", "none")

@@ -85,6 +85,8 @@ class TrackerKwargs(TypedDict, total=False):
     velocity_smoothing: float
     pref_window: int
     position_smoothing: float
+    jitter_floor: float
+    jitter_smoothing_state: bool
     size_smoothing: float
     ellipse_l_scale: float
     ellipse_w_scale: float
@@ -137,6 +139,8 @@ class Tracker:
         velocity_smoothing: float = 0.5,
         pref_window: int = 20,
         position_smoothing: float = 0.3,
+        jitter_floor: float = 0.06,
+        jitter_smoothing_state: bool = True,
         size_smoothing: float = 0.5,
         ellipse_l_scale: float = 0.15,
         ellipse_w_scale: float = 0.15,

@@ -82,6 +82,23 @@ position_smoothing      float  0.3         [0, 1)               weight of the pr
                                                                 (the track's state keeps the
                                                                 detection's centre; 0: the
                                                                 detection's centre)
+jitter_floor            float  0.06        [0, inf]             adaptive smoothing: the innovation
+                                                                motion alone explains (distance from
+                                                                a followed track's one-frame
+                                                                prediction to its matched detection,
+                                                                over box height); with the mean
+                                                                innovation over all tracks so far
+                                                                above it, a followed track's matched
+                                                                centre gives weight 1 -
+                                                                (jitter_floor / mean)^2 to the
+                                                                prediction; velocities stay measured
+                                                                on the detections (0: off)
+jitter_smoothing_state  bool   True        True|False           adaptive smoothing (jitter_floor)
+                                                                moves the track's state, which the
+                                                                next prediction starts from (false:
+                                                                only the reported box, as
+                                                                position_smoothing, the larger
+                                                                weight winning)
 size_smoothing          float  0.5         [0, 1)               weight of the previous box size when
                                                                 a match updates it (0: the
                                                                 detection's size)

@@ -3,6 +3,7 @@
 
 pub mod cost;
 pub mod error;
+pub mod jitter;
 pub mod lap;
 pub mod lost_report;
 pub mod occlusion;

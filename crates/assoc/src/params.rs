@@ -433,6 +433,10 @@ tracker_params! {
             "frames of matched history the preferred velocity is averaged over";
         position_smoothing: f64 = 0.3, closed_open(0.0, 1.0),
             "weight of the predicted centre in the reported box of a track matched in this frame and the previous one (the track's state keeps the detection's centre; 0: the detection's centre)";
+        jitter_floor: f64 = 0.06, closed(0.0, f64::INFINITY),
+            "adaptive smoothing: the innovation motion alone explains (distance from a followed track's one-frame prediction to its matched detection, over box height); with the mean innovation over all tracks so far above it, a followed track's matched centre gives weight 1 - (jitter_floor / mean)^2 to the prediction; velocities stay measured on the detections (0: off)";
+        jitter_smoothing_state: bool = true, Range::Bool,
+            "adaptive smoothing (jitter_floor) moves the track's state, which the next prediction starts from (false: only the reported box, as position_smoothing, the larger weight winning)";
         size_smoothing: f64 = 0.5, closed_open(0.0, 1.0),
             "weight of the previous box size when a match updates it (0: the detection's size)";
         ellipse_l_scale: f64 = 0.15, POSITIVE,
@@ -493,10 +497,10 @@ fn unknown(name: &str) -> TrackError {
 
 impl TrackerParams {
     /// The DensePeds paper's plain tracker (appearance then FRVO-predicted IoU, each solved
-    /// optimally; no score thresholds, no second pass, no recovery, no size or position
-    /// smoothing, only matched tracks reported). Equivalent to the keyword arguments
+    /// optimally; no score thresholds, no second pass, no recovery, no size, position or
+    /// adaptive smoothing, only matched tracks reported). Equivalent to the keyword arguments
     /// `det_threshold=-inf, new_track_threshold=-inf, second_pass=False, recovery=False,
-    /// size_smoothing=0, position_smoothing=0, output_lost=0, occluded_output=0,
+    /// size_smoothing=0, position_smoothing=0, jitter_floor=0, output_lost=0, occluded_output=0,
     /// score_scale="absolute", score_quantile_floor=0`. Other fields keep their defaults.
     pub fn pure() -> Self {
         Self {
@@ -508,6 +512,7 @@ impl TrackerParams {
             recovery: false,
             size_smoothing: 0.0,
             position_smoothing: 0.0,
+            jitter_floor: 0.0,
             output_lost: 0,
             occluded_output: 0,
             ..Self::default()

@@ -139,7 +139,11 @@ impl Track {
         centre(&self.predicted)
     }
 
-    /// Updates the state from a matched detection in `frame`.
+    /// Updates the state from a matched detection in `frame`. `adaptive` is the weight of the
+    /// prediction the detector's jitter calls for (`jitter_floor`), applied to a followed track
+    /// (matched in the previous frame too): to its state, or with `jitter_smoothing_state` false
+    /// only to its reported box.
+    #[allow(clippy::too_many_arguments)]
     pub fn apply_match(
         &mut self,
         det_index: usize,
@@ -147,41 +151,46 @@ impl Track {
         score: f64,
         frame: u64,
         embedding: Option<&[f32]>,
+        adaptive: f64,
         p: &TrackerParams,
     ) {
-        let c = to_vec(centre(&det));
+        let followed = self.time_since_update == 0 && self.hits > 1;
+        let predicted = to_vec(centre(&self.predicted));
+        let (state_w, sp) = match (followed, p.jitter_smoothing_state) {
+            (false, _) => (0.0, 0.0),
+            (true, true) => (adaptive, p.position_smoothing),
+            (true, false) => (0.0, p.position_smoothing.max(adaptive)),
+        };
+        let raw = to_vec(centre(&det));
+        let c = raw * (1.0 - state_w) + predicted * state_w;
         let gap = frame.saturating_sub(self.last_obs_frame).max(1) as f64;
         // Observation-centric: the velocity spans the gap since the last real observation,
-        // not the drifted prediction.
-        let observed = (c - to_vec(centre(&self.last_obs))) / gap;
+        // not the drifted prediction, and the preferred velocity is measured on the detections
+        // (a smoothed state does not feed back into the velocity).
+        let observed = (raw - to_vec(centre(&self.last_obs))) / gap;
         self.vel = if self.history.len() == 1 {
             observed
         } else {
             observed * p.velocity_smoothing + self.vel * (1.0 - p.velocity_smoothing)
         };
-        self.history.push_back((frame, c, det[3]));
+        self.history.push_back((frame, raw, det[3]));
         while self.history.len() > p.pref_window + 1 {
             self.history.pop_front();
         }
         let (f0, c0, _) = self.history[0];
         self.pref_vel = if frame > f0 {
-            (c - c0) / (frame - f0) as f64
+            (raw - c0) / (frame - f0) as f64
         } else {
             self.vel
         };
         let s = p.size_smoothing;
         let (dw, dh) = (det[2] - det[0], det[3] - det[1]);
-        // The reported centre: the detection's, pulled toward this frame's prediction when the
-        // track was also matched in the previous frame (the state keeps the detection's).
-        let sp = if self.time_since_update == 0 && self.hits > 1 {
-            p.position_smoothing
-        } else {
-            0.0
-        };
-        if s > 0.0 || sp > 0.0 {
+        // The reported centre: the state's, pulled toward this frame's prediction when the
+        // track was also matched in the previous frame.
+        if s > 0.0 || sp > 0.0 || state_w > 0.0 {
             self.w = s * self.w + (1.0 - s) * dw;
             self.h = s * self.h + (1.0 - s) * dh;
-            let shown = c * (1.0 - sp) + to_vec(centre(&self.predicted)) * sp;
+            let shown = c * (1.0 - sp) + predicted * sp;
             self.bbox = box_from_centre([shown.x, shown.y], self.w, self.h);
         } else {
             (self.w, self.h) = (dw, dh);

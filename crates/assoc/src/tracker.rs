@@ -13,6 +13,7 @@
 //! their neighbours and reported, those that left the image are deleted.
 
 use crate::cost::{centre, iou, normalise_rows, validate_boxes, BBox};
+use crate::jitter::JitterEstimate;
 use crate::lap::{Edge, SparseMatcher};
 use crate::lost_report::LostReport;
 use crate::occlusion::{classify, complete, Scene, Unmatched};
@@ -61,6 +62,8 @@ pub struct Tracker {
     lost_report: [LostReport; 2],
     /// The ground plane seen so far (`ground_plane`).
     perspective: Perspective,
+    /// The detector's jitter against the predictions (`jitter_floor`).
+    jitter: JitterEstimate,
 }
 
 impl std::fmt::Debug for Tracker {
@@ -120,11 +123,22 @@ impl Tracker {
             scores_seen: ScoreScaler::new(),
             lost_report: [LostReport::new(), LostReport::new()],
             perspective: Perspective::new(),
+            jitter: JitterEstimate::new(),
         })
     }
 
     pub fn params(&self) -> &TrackerParams {
         &self.params
+    }
+
+    /// The detector's mean innovation so far (distance from a followed track's one-frame
+    /// prediction to its matched detection, over box height) and the weight of the prediction
+    /// it calls for under `jitter_floor`.
+    pub fn detector_jitter(&self) -> (f64, f64) {
+        (
+            self.jitter.mean(),
+            self.jitter.gain(self.params.jitter_floor),
+        )
     }
 
     /// Forgets all tracks and restarts ids at 1 (parameters are kept).
@@ -136,6 +150,7 @@ impl Tracker {
         self.scores_seen.reset();
         self.lost_report.iter_mut().for_each(LostReport::reset);
         self.perspective = Perspective::new();
+        self.jitter.reset();
         self.model = make_model(self.params.motion, self.params.motion_params);
     }
 
@@ -381,6 +396,7 @@ impl Tracker {
 
         // Update matched tracks, coast the others, drop the dead.
         let horizon = p.output_lost.max(p.occluded_output);
+        let adaptive = self.jitter.gain(p.jitter_floor);
         for (i, t) in self.tracks.iter_mut().enumerate() {
             match track_det[i] {
                 Some(j) => {
@@ -393,7 +409,11 @@ impl Tracker {
                         );
                     }
                     self.perspective.observe(&dets[j]);
-                    t.apply_match(j, dets[j], scores[j], frame, emb_row(j), &p);
+                    if t.time_since_update == 0 && t.hits > 1 {
+                        let (d, pc) = (centre(&dets[j]), t.predicted_centre());
+                        self.jitter.observe((d[0] - pc[0]).hypot(d[1] - pc[1]), t.h);
+                    }
+                    t.apply_match(j, dets[j], scores[j], frame, emb_row(j), adaptive, &p);
                     if !t.confirmed && t.hits >= p.n_init {
                         t.confirmed = true;
                         t.id = self.next_id;

@@ -654,3 +654,84 @@ fn position_smoothing_pulls_the_reported_box_toward_the_prediction_only() {
     let at = |v: &[(u32, f64, Option<usize>, u64)], k: u32| v.iter().find(|r| r.0 == k).unwrap().1;
     assert!((at(&plain, 13) - at(&smooth, 13)).abs() < 1.0);
 }
+
+/// Five people walking right at 2 px/frame, 200 px apart, boxes 60 x 100 px, for 80 frames; each
+/// detection's centre is off the person's by `flicker` px to the left or right, the side
+/// alternating from frame to frame and from person to person. Returns the tracker and, per
+/// reported box in the last 40 frames, the distance of its centre from the person's.
+fn flicker_walk(jitter_floor: f64, flicker: f64) -> (Tracker, Vec<f64>) {
+    let mut t = Tracker::new(TrackerParams {
+        n_init: 1,
+        jitter_floor,
+        ..cv_params()
+    })
+    .unwrap();
+    let mut errors = Vec::new();
+    for k in 0..80u32 {
+        let truth: Vec<f64> = (0..5)
+            .map(|i| 100.0 + 200.0 * f64::from(i) + 2.0 * f64::from(k))
+            .collect();
+        let dets: Vec<[f64; 4]> = truth
+            .iter()
+            .enumerate()
+            .map(|(i, &x)| {
+                let side = if (k as usize + i) % 2 == 0 { 1.0 } else { -1.0 };
+                let c = x + side * flicker;
+                [c - 30.0, 150.0, c + 30.0, 250.0]
+            })
+            .collect();
+        for o in run(&mut t, &dets) {
+            if k < 40 {
+                continue;
+            }
+            let c = 0.5 * (o.bbox[0] + o.bbox[2]);
+            let err = truth
+                .iter()
+                .map(|x| (c - x).abs())
+                .fold(f64::INFINITY, f64::min);
+            errors.push(err);
+        }
+    }
+    (t, errors)
+}
+
+fn mean(v: &[f64]) -> f64 {
+    v.iter().sum::<f64>() / v.len() as f64
+}
+
+#[test]
+fn adaptive_smoothing_is_strong_for_a_flickering_detector_and_off_for_a_precise_one() {
+    let floor = 0.06;
+    // A detector whose boxes flicker 10 px either side of 100 px tall people: the innovation
+    // stays well above the floor and the prediction gets most of the weight.
+    let (t, smoothed) = flicker_walk(floor, 10.0);
+    let (innovation, gain) = t.detector_jitter();
+    assert!(innovation > 0.1, "innovation {innovation}");
+    assert!(gain > 0.5, "gain {gain}");
+    let (_, raw) = flicker_walk(0.0, 10.0);
+    assert_eq!(
+        smoothed.len(),
+        raw.len(),
+        "every person followed in both runs"
+    );
+    // Once settled, the reported boxes follow the people, not the flicker: the smoothed error
+    // is a fraction of the unsmoothed one (where position_smoothing alone takes 0.3 of it).
+    assert!(
+        mean(&smoothed) < 0.5 * mean(&raw),
+        "smoothed {} raw {}",
+        mean(&smoothed),
+        mean(&raw)
+    );
+    // A precise detector (0.5 px either side): the gain stays 0 and the output is exactly the
+    // unsmoothed one.
+    let (t, precise) = flicker_walk(floor, 0.5);
+    let (innovation, gain) = t.detector_jitter();
+    assert!(innovation < floor / 2.0, "innovation {innovation}");
+    assert_eq!(gain, 0.0);
+    assert_eq!(precise, flicker_walk(0.0, 0.5).1);
+}
+
+#[test]
+fn the_pure_method_has_no_adaptive_smoothing() {
+    assert_eq!(TrackerParams::pure().jitter_floor, 0.0);
+}
