@@ -4,9 +4,10 @@
         [--every 3] [--int8] [--option person_share=0.3]
 
 Runs the shared segmenter (float copy, or ``--int8``: the graph as shipped) on every
-``--every``-th frame (a tile rule that follows the people sees only those) of MOT20-01-dev
-(frames 1-214) and PETS09-S2L1-dev (1-397), keeps what the
-pipeline's detection filter keeps (the yoloseg preset), matches the kept boxes one-to-one to the
+``--every``-th frame of MOT20-01-dev (frames 1-214) and PETS09-S2L1-dev (1-397); a tile rule
+that follows the people sees only those frames, and its ``full_scan_every`` counts them
+(``--every 1`` measures the rule as ``densepeds run`` runs it). It keeps what the pipeline's
+detection filter keeps (the yoloseg preset), matches the kept boxes one-to-one to the
 ground truth at IoU >= 0.5 and prints, per tile choice and video: recall per visibility bin
 (MOT20's gt column 9; PETS09 has none), unmatched detections per frame, views (tiles) per frame
 and detector milliseconds per frame (wall clock, with the machine load: compare rows of one run).
