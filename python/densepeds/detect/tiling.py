@@ -311,12 +311,12 @@ class PeopleTiles:
     most ``max_tiles`` and at most ``GRID_MULTIPLE`` times the grid's views. Every
     ``full_scan_every``-th frame runs all of those tiles (a full scan, where the layout is
     refitted and then kept until the next one), so that people who enter or were missed are
-    looked for at least that often; the frames between run only the tiles that show somebody
-    detected in the last ``full_scan_every`` frames (the last full scan's included) whole (``occupied_tiles``, people grown by ``margin`` of
-    their height; the whole frame in one view when nobody was). ``full_scan_every=1``: every
-    frame a full scan. ``last_full`` says whether the last ``tiles`` call was a full scan.
-    ``observe`` feeds a frame's detections (a frame of another size starts over: another
-    video).
+    looked for at least that often; the frames between run only the tiles that show whole
+    somebody detected in the last ``full_scan_every`` frames, the last full scan's included
+    (``occupied_tiles``, people grown by ``margin`` of their height; the whole frame in one
+    view when nobody was). ``full_scan_every=1``: every frame a full scan. ``last_full``
+    says whether the last ``tiles`` call was one. ``observe`` feeds a frame's detections (a
+    frame of another size starts over: another video).
     """
 
     def __init__(
