@@ -635,3 +635,35 @@ def test_people_tiles_scan_everything_every_k_frames() -> None:
     assert always.tiles(960, 540) == every and always.last_full
     with pytest.raises(ParameterError):
         PeopleTiles(320, 0.25, 100, 3.0, full_scan_every=0)
+
+
+def test_full_scans_on_a_real_crowd_skip_views_but_keep_the_people() -> None:
+    """MOT20-01 frames 1-12 with a full scan every 4th frame: the frames between run fewer
+    views than the full layout and find about the same visible people (the detector alone,
+    every frame; the layouts come from the same detections until the first skipped frame)."""
+    gt = read_gt(shared_path("data", "MOT20-01-dev", "gt", "gt.txt"))
+    frames = video_frames(
+        shared_path("data", "MOT20-01-dev", "MOT20-01-raw.mp4"), list(range(1, 13))
+    )
+    model = shared_path("models", YOLO)
+    full = make_detector("yoloseg", model, threads=2)
+    skip = make_detector("yoloseg", model, threads=2, full_scan_every=4)
+    assert isinstance(full, YoloSegDetector) and isinstance(skip, YoloSegDetector)
+    found = {"full": 0, "skip": 0}
+    views = {"full": 0, "skip": 0}
+    scans = []
+    total = 0
+    for k, frame in frames.items():
+        truth = visible_gt(gt, k)
+        total += len(truth)
+        for name, det in (("full", full), ("skip", skip)):
+            found[name] += recall(det(frame), truth)[0]
+            views[name] += det.last_views
+        scans.append(skip.people_tiles.last_full)
+    print(f"MOT20-01 frames 1-12: found {found} of {total}, views {views}")
+    # The grid until enough people are seen, then a full scan every 4th frame.
+    first = scans.index(False)
+    assert all(scans[:first]) and first >= 1
+    assert scans[first:] == [(i % 4 == 3) for i in range(len(scans) - first)]
+    assert views["skip"] < views["full"]
+    assert found["skip"] >= 0.95 * found["full"] and total > 100
