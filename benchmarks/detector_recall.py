@@ -1,15 +1,18 @@
 """Detector recall per ground-truth visibility, for tile choices, on the two real videos.
 
-    OPENBLAS_NUM_THREADS=1 python benchmarks/detector_recall.py --tiles auto 3x2 4x2 \\
-        [--every 3] [--int8] [--option person_share=0.3]
+    OPENBLAS_NUM_THREADS=1 python benchmarks/detector_recall.py \\
+        --tiles auto auto:full_scan_every=4 3x2 4x2 [--every 3] [--int8] [--option person_share=0.3]
 
 Runs the shared segmenter (float copy, or ``--int8``: the graph as shipped) on every
-``--every``-th frame (a tile rule that follows the people sees only those) of MOT20-01-dev
-(frames 1-214) and PETS09-S2L1-dev (1-397), keeps what the
-pipeline's detection filter keeps (the yoloseg preset), matches the kept boxes one-to-one to the
+``--every``-th frame of MOT20-01-dev (frames 1-214) and PETS09-S2L1-dev (1-397); a tile rule
+that follows the people sees only those frames, and its ``full_scan_every`` counts them
+(``--every 1`` measures the rule as ``densepeds run`` runs it). It keeps what the pipeline's
+detection filter keeps (the yoloseg preset), matches the kept boxes one-to-one to the
 ground truth at IoU >= 0.5 and prints, per tile choice and video: recall per visibility bin
 (MOT20's gt column 9; PETS09 has none), unmatched detections per frame, views (tiles) per frame
 and detector milliseconds per frame (wall clock, with the machine load: compare rows of one run).
+A tile choice may carry detector options of its own after a colon (``auto:KEY=VALUE,...``);
+``--option`` applies to every choice.
 """
 
 from __future__ import annotations
@@ -108,7 +111,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         for seq, frames in realvideo.VIDEOS:
             if seq not in args.videos:
                 continue
-            r = run(seq, frames, args.every, {**base, "tiles": tiles})
+            r = run(seq, frames, args.every, {**base, **choice_options(tiles)})
             cells = " ".join(f"{k} {v:.1f}" for k, v in r.items())
             print(f"{tiles} {seq}: {cells}", flush=True)
             rows.append((tiles, seq, r))
@@ -117,17 +120,27 @@ def main(argv: Sequence[str] | None = None) -> int:
     return 0
 
 
+def choice_options(choice: str) -> dict[str, Any]:
+    """Detector options of a tile choice: ``TILES[:KEY=VALUE,...]``."""
+    tiles, _, extra = choice.partition(":")
+    return {"tiles": tiles, **accuracy_grid.parse_params([p for p in extra.split(",") if p])}
+
+
 def markdown(rows: Sequence[tuple[str, str, dict[str, float]]], args: Any, load: str) -> str:
     graph = "int8 graph as shipped" if args.int8 else "float copy"
     keys = [f"{BINS[i]:.2f}-{min(BINS[i + 1], 1):.2f}" for i in range(len(BINS) - 1)]
     keys += ["all", "unmatched/frame", "views/frame", "ms/frame"]
     opts = "".join(f" --option {o}" for o in args.option)
+    frames = "every frame" if args.every == 1 else f"every {args.every}th frame"
     lines = [
         f"# Detector recall per tile choice ({graph})",
         "",
         "Recall (%) of ground-truth pedestrians per visibility bin after the pipeline's "
         "detection filter (one-to-one, IoU >= 0.5), unmatched detections, views (tiles) and "
-        f"detector milliseconds per frame, every {args.every}th frame; {load}. Regenerate with:",
+        f"detector milliseconds per frame, {frames}; {load}. A choice's own detector options "
+        "follow its colon (`auto:full_scan_every=K`: the people's whole layout every K-th frame, "
+        "between only the tiles that show somebody found in the last K frames whole; "
+        "`densepeds.detect.tiling.PeopleTiles`). Regenerate with:",
         "",
         "    OPENBLAS_NUM_THREADS=1 python benchmarks/detector_recall.py --tiles "
         + " ".join(args.tiles)

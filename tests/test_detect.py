@@ -14,13 +14,16 @@ from densepeds.detect import make_detector
 from densepeds.detect.onnxutil import dequantized, load_model, make_session, with_dynamic_batch
 from densepeds.detect.precomputed import PrecomputedDetector
 from densepeds.detect.tiling import (
+    GRID_MULTIPLE,
     PeopleTiles,
     Perspective,
+    Tile,
     auto_grid,
     fit_perspective,
     make_tiles,
     merge_views,
     nms,
+    occupied_tiles,
     parse_grid,
     people_tiles,
 )
@@ -485,7 +488,7 @@ def test_people_tiles_cost_at_most_twice_the_grid() -> None:
     feet = np.linspace(150, 576, 30)
     small = perspective_people(-20.0, 0.2, feet, 768)
     wanted = people_tiles(768, 576, 320, fit_perspective(small), 0.25, 100, 3.0)
-    planner = PeopleTiles(320, person_share=0.25, max_tiles=100, max_scale=3.0)
+    planner = PeopleTiles(320, person_share=0.25, max_tiles=100, max_scale=3.0, full_scan_every=1)
     planner.observe(small, np.full(len(small), 0.9), 768, 576)
     cols, rows = auto_grid(768, 576, 320)
     assert len(wanted) > GRID_MULTIPLE * cols * rows
@@ -493,7 +496,7 @@ def test_people_tiles_cost_at_most_twice_the_grid() -> None:
 
 
 def test_people_tiles_start_from_the_grid_then_follow_the_people() -> None:
-    planner = PeopleTiles(320, person_share=0.25, max_tiles=100, max_scale=3.0)
+    planner = PeopleTiles(320, person_share=0.25, max_tiles=100, max_scale=3.0, full_scan_every=1)
     first = planner.tiles(960, 540)
     assert first == make_tiles(960, 540, *auto_grid(960, 540, 320))
     feet = np.linspace(250, 540, 30)
@@ -501,11 +504,11 @@ def test_people_tiles_start_from_the_grid_then_follow_the_people() -> None:
     planner.observe(small, np.full(len(small), 0.9), 960, 540)
     assert planner.perspective is not None and planner.perspective.b == pytest.approx(0.3)
     # Unsure detections are not people to follow.
-    unsure = PeopleTiles(320, 0.25, 100, 3.0)
+    unsure = PeopleTiles(320, 0.25, 100, 3.0, 1)
     unsure.observe(small, np.full(len(small), 0.1), 960, 540)
     assert unsure.perspective is None and unsure.tiles(960, 540) == first
     # Three times as tall people: fewer, larger tiles.
-    big = PeopleTiles(320, 0.25, 100, 3.0)
+    big = PeopleTiles(320, 0.25, 100, 3.0, 1)
     big.observe(perspective_people(-90.0, 0.9, feet, 960), np.full(len(small), 0.9), 960, 540)
     assert len(big.tiles(960, 540)) < len(planner.tiles(960, 540))
     # Another frame size is another video: the grid again, then its own people.
@@ -540,3 +543,127 @@ def test_a_pipeline_starts_its_detector_afresh(tmp_path: Path) -> None:
     assert det.people_tiles._seen
     pipe.reset()
     assert not det.people_tiles._seen
+
+
+# --- running only the tiles that hold people, with a periodic full scan -----------------------
+def _whole_in(box: np.ndarray, t: Tile) -> bool:
+    """The box crosses none of the tile's interior edges (brute force, one box, one tile)."""
+    left, top, right, bottom = t.interior
+    return (
+        (not left or box[0] >= t.x0)
+        and (not top or box[1] >= t.y0)
+        and (not right or box[2] <= t.x1)
+        and (not bottom or box[3] <= t.y1)
+    )
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_occupied_tiles_show_every_person_whole_and_skip_only_tiles_without_people(
+    seed: int,
+) -> None:
+    rng = np.random.default_rng(seed)
+    p = Perspective(-30.0, 0.3, 150.0, 540.0)
+    tiles = people_tiles(960, 540, 320, p, 0.25, 100, 3.0)
+    # A crowd in one part of the frame: people at random feet inside a random window.
+    x_lo, x_hi = sorted(rng.uniform(0, 960, 2))
+    feet = rng.uniform(200, 540, 25)
+    h = p.a + p.b * feet
+    x = rng.uniform(x_lo, max(x_hi, x_lo + 1), 25)
+    people = np.c_[x, feet - h, x + 0.4 * h, feet]
+    kept = occupied_tiles(tiles, people, margin=0.1)
+    assert kept == sorted(set(kept)) and len(kept) < len(tiles)
+    # Brute force: a tile is kept exactly when it shows somebody whole (people grown by a
+    # tenth of their height, or the bare box for people no tile shows grown).
+    grown = people + np.outer(0.1 * (people[:, 3] - people[:, 1]), [-1, -1, 1, 1])
+    expected = set()
+    for box, big in zip(people, grown, strict=True):
+        holders = [k for k, t in enumerate(tiles) if _whole_in(big, t)]
+        holders = holders or [k for k, t in enumerate(tiles) if _whole_in(box, t)]
+        assert holders, box  # the layout shows everybody whole somewhere
+        expected |= set(holders)
+    assert set(kept) == expected
+    # Every person is whole in a kept tile; a tile left out shows nobody whole.
+    for box in people:
+        assert any(_whole_in(box, tiles[k]) for k in kept)
+    for k in set(range(len(tiles))) - set(kept):
+        assert not any(_whole_in(box, tiles[k]) for box in grown)
+    # Nobody: no tile. A person no tile shows whole (taller than every tile): the tile
+    # holding most of them.
+    assert occupied_tiles(tiles, np.zeros((0, 4)), 0.1) == []
+    giant = np.array([[400.0, 0.0, 700.0, 540.0]])
+    (only,) = occupied_tiles(tiles, giant, 0.1)
+    inter = intersections(giant, np.array([[t.x0, t.y0, t.x1, t.y1] for t in tiles], float))
+    assert inter[0, only] == inter.max()
+
+
+def test_people_tiles_scan_everything_every_k_frames() -> None:
+    planner = PeopleTiles(320, 0.25, 100, 3.0, full_scan_every=3)
+    feet = np.linspace(250, 540, 30)
+    crowd = perspective_people(-30.0, 0.3, feet, 960)
+    planner.observe(crowd, np.full(len(crowd), 0.9), 960, 540)
+    # The same people in the left third only: the frames between full scans run fewer tiles.
+    left = crowd[crowd[:, 2] < 300]
+    for _ in range(3):  # a full scan's period later, the crowd beyond is forgotten
+        planner.observe(left, np.full(len(left), 0.9), 960, 540)
+    assert planner.perspective is not None
+    cap = GRID_MULTIPLE * np.prod(auto_grid(960, 540, 320))
+    every = people_tiles(960, 540, 320, planner.perspective, 0.25, cap, 3.0)
+    fulls = []
+    for _ in range(9):
+        tiles = planner.tiles(960, 540)
+        fulls.append(planner.last_full)
+        assert planner.last_full == (tiles == every)
+        if not planner.last_full:
+            assert 0 < len(tiles) < len(every)
+            assert all(t.x0 < 300 for t in tiles)
+            left_tiles = tiles
+    assert fulls == [True, False, False] * 3
+    # The crowd leaves: between full scans, the tiles of whoever was seen in the last three
+    # frames (the last full scan's included); then, with nobody, the whole frame in one view.
+    views = []
+    for _ in range(6):
+        tiles = planner.tiles(960, 540)
+        views.append(len(tiles) if not planner.last_full else "full")
+        planner.observe(np.zeros((0, 4)), np.zeros(0), 960, 540)
+    assert views[0] == "full" and views[3] == "full"
+    assert views[1] == views[2] == len(left_tiles) and views[4] == views[5] == 0
+    # Every frame a full scan (the detector's default).
+    always = PeopleTiles(320, 0.25, 100, 3.0, 1)
+    always.observe(crowd, np.full(len(crowd), 0.9), 960, 540)
+    for _ in range(3):
+        always.observe(left, np.full(len(left), 0.9), 960, 540)
+    assert always.tiles(960, 540) == every and always.last_full
+    with pytest.raises(ParameterError):
+        PeopleTiles(320, 0.25, 100, 3.0, full_scan_every=0)
+
+
+def test_full_scans_on_a_real_crowd_skip_views_but_keep_the_people() -> None:
+    """MOT20-01 frames 1-12 with a full scan every 4th frame: the frames between run fewer
+    views than the full layout and find about the same visible people (the detector alone,
+    every frame; the layouts come from the same detections until the first skipped frame)."""
+    gt = read_gt(shared_path("data", "MOT20-01-dev", "gt", "gt.txt"))
+    frames = video_frames(
+        shared_path("data", "MOT20-01-dev", "MOT20-01-raw.mp4"), list(range(1, 13))
+    )
+    model = shared_path("models", YOLO)
+    full = make_detector("yoloseg", model, threads=2)
+    skip = make_detector("yoloseg", model, threads=2, full_scan_every=4)
+    assert isinstance(full, YoloSegDetector) and isinstance(skip, YoloSegDetector)
+    found = {"full": 0, "skip": 0}
+    views = {"full": 0, "skip": 0}
+    scans = []
+    total = 0
+    for k, frame in frames.items():
+        truth = visible_gt(gt, k)
+        total += len(truth)
+        for name, det in (("full", full), ("skip", skip)):
+            found[name] += recall(det(frame), truth)[0]
+            views[name] += det.last_views
+        scans.append(skip.people_tiles.last_full)
+    print(f"MOT20-01 frames 1-12: found {found} of {total}, views {views}")
+    # The grid until enough people are seen, then a full scan every 4th frame.
+    first = scans.index(False)
+    assert all(scans[:first]) and first >= 1
+    assert scans[first:] == [(i % 4 == 3) for i in range(len(scans) - first)]
+    assert views["skip"] < views["full"]
+    assert found["skip"] >= 0.95 * found["full"] and total > 100

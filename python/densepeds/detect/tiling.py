@@ -27,7 +27,7 @@ TilesSpec = str | int | tuple[int, int] | None
 OVERLAP = 0.2  # fraction of a tile shared with each neighbour
 CUT_MARGIN = 3.0  # px (frame scale): a box this close to an interior tile edge is "cut"
 # The detector settings read only by the people-following rule (the yoloseg "auto" tiles).
-PEOPLE_SETTINGS = ("person_share", "max_tiles", "max_scale")
+PEOPLE_SETTINGS = ("person_share", "max_tiles", "max_scale", "full_scan_every")
 # The people's tiles cost at most this many times the views of the frame's fixed grid
 # (auto_grid): on small frames the people's share would otherwise ask for many magnified tiles.
 GRID_MULTIPLE = 2
@@ -268,14 +268,55 @@ def _people_tiles(
     return tiles
 
 
+def occupied_tiles(tiles: list[Tile], people: FloatArray, margin: float) -> list[int]:
+    """Indices (ascending) of the ``tiles`` that show somebody in ``people`` (frame boxes)
+    whole: the box, grown by ``margin`` of its height on every side (the way people may move
+    before the next frame), crosses none of the tile's interior edges (the box alone where no
+    tile holds the grown one). A person no tile shows whole keeps the tile that holds most of
+    their box. Every person is thus whole in a kept tile wherever some tile shows them whole,
+    with every view that does (overlapping views find more of a crowd than one alone); a tile
+    left out shows nobody whole."""
+    if not tiles or not len(people):
+        return []
+    boxes = np.asarray(people, np.float64)
+    h = np.maximum(boxes[:, 3] - boxes[:, 1], 1.0)
+    grown = boxes + np.outer(h * margin, [-1.0, -1.0, 1.0, 1.0])
+    edges = np.array([[t.x0, t.y0, t.x1, t.y1] for t in tiles], np.float64)
+    inner = np.array([t.interior for t in tiles], bool)
+
+    def whole(b: FloatArray) -> npt.NDArray[np.bool_]:  # [people, tiles]
+        ok = np.ones((len(b), len(tiles)), bool)
+        ok &= ~inner[:, 0] | (b[:, None, 0] >= edges[None, :, 0])
+        ok &= ~inner[:, 1] | (b[:, None, 1] >= edges[None, :, 1])
+        ok &= ~inner[:, 2] | (b[:, None, 2] <= edges[None, :, 2])
+        ok &= ~inner[:, 3] | (b[:, None, 3] <= edges[None, :, 3])
+        return ok
+
+    shows = whole(grown)
+    bare = ~shows.any(axis=1)
+    shows[bare] = whole(boxes[bare])
+    nobody = ~shows.any(axis=1)
+    if nobody.any():
+        inter = intersections(boxes[nobody], edges)
+        shows[np.flatnonzero(nobody), np.argmax(inter, axis=1)] = True
+    return np.flatnonzero(shows.any(axis=0)).tolist()
+
+
 class PeopleTiles:
-    """Chooses each frame's tiles from the people detected in the last ``window`` frames.
+    """Chooses each frame's tiles from the people detected in recent frames.
 
     ``tiles(width, height)`` gives the views for the next frame: ``auto_grid``'s tiles until
     ``min_people`` confident detections (score >= ``min_score``) have been seen, then
-    ``people_tiles`` on the perspective fitted to them, at most ``max_tiles`` and at most
-    ``GRID_MULTIPLE`` times the grid's views; ``observe`` feeds a frame's detections
-    (a frame of another size starts over: another video).
+    ``people_tiles`` on the perspective fitted to those of the last ``window`` full scans, at
+    most ``max_tiles`` and at most ``GRID_MULTIPLE`` times the grid's views. Every
+    ``full_scan_every``-th frame runs all of those tiles (a full scan, where the layout is
+    refitted and then kept until the next one), so that people who enter or were missed are
+    looked for at least that often; the frames between run only the tiles that show whole
+    somebody detected in the last ``full_scan_every`` frames, the last full scan's included
+    (``occupied_tiles``, people grown by ``margin`` of their height; the whole frame in one
+    view when nobody was). ``full_scan_every=1``: every frame a full scan. ``last_full``
+    says whether the last ``tiles`` call was one. ``observe`` feeds a frame's detections (a
+    frame of another size starts over: another video).
     """
 
     def __init__(
@@ -284,34 +325,56 @@ class PeopleTiles:
         person_share: float,
         max_tiles: int,
         max_scale: float,
+        full_scan_every: int,
         window: int = 25,
         min_score: float = 0.4,
         min_people: int = 10,
+        margin: float = 0.1,
     ) -> None:
+        if full_scan_every < 1:
+            raise ParameterError(f"full_scan_every must be >= 1, got {full_scan_every}")
         self.input_size = input_size
         self.person_share = person_share
         self.max_tiles = max_tiles
         self.max_scale = max_scale
+        self.full_scan_every = full_scan_every
         self.window = window
         self.min_score = min_score
         self.min_people = min_people
+        self.margin = margin
         self._seen: list[FloatArray] = []
+        self._recent: list[FloatArray] = []
         self._size = (0, 0)
+        self._layout: list[Tile] | None = None  # the full scan's tiles
+        self._since_full = 0  # frames since the last full scan
+        self.last_full = True
         self.perspective: Perspective | None = None
 
     def tiles(self, width: int, height: int) -> list[Tile]:
         cols, rows = auto_grid(width, height, self.input_size)
+        self.last_full = True
         if self.perspective is None or (width, height) != self._size:
+            self._layout = None
             return make_tiles(width, height, cols, rows) if cols * rows > 1 else []
-        return people_tiles(
-            width,
-            height,
-            self.input_size,
-            self.perspective,
-            self.person_share,
-            min(self.max_tiles, GRID_MULTIPLE * cols * rows),
-            self.max_scale,
-        )
+        if self._layout is None or self._since_full + 1 >= self.full_scan_every:
+            # A full scan: the layout is refitted here only, and kept until the next one.
+            self._layout = people_tiles(
+                width,
+                height,
+                self.input_size,
+                self.perspective,
+                self.person_share,
+                min(self.max_tiles, GRID_MULTIPLE * cols * rows),
+                self.max_scale,
+            )
+            self._since_full = 0
+            return self._layout
+        self._since_full += 1
+        self.last_full = False
+        if not self._layout:
+            return []
+        people = np.concatenate(self._recent)
+        return [self._layout[k] for k in occupied_tiles(self._layout, people, self.margin)]
 
     def observe(
         self, boxes: FloatArray, scores: npt.NDArray[np.floating], width: int, height: int
@@ -319,11 +382,19 @@ class PeopleTiles:
         if (width, height) != self._size:
             self.reset()
             self._size = (width, height)
-        self._seen.append(np.asarray(boxes, np.float64)[np.asarray(scores) >= self.min_score])
-        del self._seen[: -self.window]
-        self.perspective = fit_perspective(np.concatenate(self._seen), self.min_people)
+        boxes = np.asarray(boxes, np.float64).reshape(-1, 4)
+        self._recent.append(boxes)
+        del self._recent[: -self.full_scan_every]
+        if self.last_full:  # the people's sizes from full scans only: a steady layout
+            self._seen.append(boxes[np.asarray(scores) >= self.min_score])
+            del self._seen[: -self.window]
+            self.perspective = fit_perspective(np.concatenate(self._seen), self.min_people)
 
     def reset(self) -> None:
         self._seen.clear()
+        self._recent.clear()
         self._size = (0, 0)
+        self._layout = None
+        self._since_full = 0
+        self.last_full = True
         self.perspective = None

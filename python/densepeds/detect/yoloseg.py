@@ -93,6 +93,12 @@ class YoloSegDetector:
     are seen): bands of square tiles sized so that a person there spans ``person_share`` of
     the input, magnified at most ``max_scale``, at most ``max_tiles`` views a frame and at most
     twice the fixed grid's (``tiling.GRID_MULTIPLE``); a fixed grid is given as "CxR".
+    ``full_scan_every=k`` (default 1: every frame) runs all of those tiles on every k-th frame
+    only, and on the frames between just the ones that show somebody found in the last k
+    frames whole (``tiling.occupied_tiles``; the whole frame in one view when nobody was
+    found), so that the people who enter or were missed are looked for at least every k
+    frames: fewer views at equal detector recall, but the tracks change (see
+    benchmarks/results/detector-recall.md).
     ``benchmarks/detector_recall.py`` measures recall and views per choice.
     """
 
@@ -113,6 +119,7 @@ class YoloSegDetector:
         person_share: float = 0.25,
         max_tiles: int = 12,
         max_scale: float = 3.0,
+        full_scan_every: int = 1,
     ) -> None:
         if not 0.0 <= score_threshold <= 1.0:
             raise ParameterError(f"score_threshold must be in [0, 1], got {score_threshold}")
@@ -136,7 +143,7 @@ class YoloSegDetector:
         self.last_views = 0  # views (tiles) of the last frame
         self._read_contract()
         self.people_tiles = PeopleTiles(
-            max(self.input_w, self.input_h), person_share, max_tiles, max_scale
+            max(self.input_w, self.input_h), person_share, max_tiles, max_scale, full_scan_every
         )
 
     # --- model contract -------------------------------------------------------------------
