@@ -78,7 +78,7 @@ TUNED_ON = {
 }
 UNTUNED = (
     "every `/frcnn` and `/int8` cell for all but the score reading, `output_lost_adaptive`, "
-    "`position_smoothing` and `jitter_floor`"
+    "`position_smoothing`, `jitter_floor` and `appearance_apart`"
 )
 MOTION_ROWS = ("frvo", "rvo", "sf", "cv")
 FEATURE_ROWS = ("segmented", "bbox", "masked_pool", "none")
