@@ -64,17 +64,21 @@ CANDIDATES: dict[str, dict[str, Any]] = {
     "jitter_floor 0": {"jitter_floor": 0.0},
     "jitter_floor 0.05": {"jitter_floor": 0.05},
     "jitter_floor 0.07": {"jitter_floor": 0.07},
+    "appearance_apart off": {"appearance_apart": 2.0},
+    "appearance_apart 0.15": {"appearance_apart": 0.15},
+    "appearance_apart 0.22": {"appearance_apart": 0.22},
 }
 # What the package defaults were chosen on: update this where a default is tuned again.
 TUNED_ON = {
     "det": "the six `/det` cells together, motion only (the score reading, `score_scale` and "
     "`score_quantile_floor`, `output_lost_adaptive`, `position_smoothing` and `jitter_floor` on "
     "all 15 cells by leave-one-out, the `/frcnn` and `/int8` ones included)",
-    "cnn": "the two `/float` videos together (the score reading as above)",
+    "cnn": "the two `/float` videos together (the score reading as above; "
+    "`appearance_apart` on all 15 cells by leave-one-out)",
 }
 UNTUNED = (
     "every `/frcnn` and `/int8` cell for all but the score reading, `output_lost_adaptive`, "
-    "`position_smoothing` and `jitter_floor`"
+    "`position_smoothing`, `jitter_floor` and `appearance_apart`"
 )
 MOTION_ROWS = ("frvo", "rvo", "sf", "cv")
 FEATURE_ROWS = ("segmented", "bbox", "masked_pool", "none")

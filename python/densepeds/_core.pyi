@@ -67,6 +67,7 @@ class TrackerKwargs(TypedDict, total=False):
     n_init: int
     max_age: int
     appearance_threshold: float
+    appearance_apart: float
     gallery_size: int
     gate_radius: float
     iou_threshold: float
@@ -121,6 +122,7 @@ class Tracker:
         n_init: int = 2,
         max_age: int = 60,
         appearance_threshold: float = 0.2,
+        appearance_apart: float = 2.0,
         gallery_size: int = 20,
         gate_radius: float = 1.0,
         iou_threshold: float = 0.3,

@@ -89,6 +89,9 @@ _CNN_APPEARANCE: dict[str, float | int | bool] = {
     # distance <= 0.25): in a crowd, looser appearance matches swap identities that the IoU
     # stage would have kept.
     "appearance_threshold": 0.25,
+    # A detection that does not overlap the track's predicted box is a different person more
+    # often than the same one met again: it needs a closer appearance.
+    "appearance_apart": 0.2,
     "gallery_size": 100,
     # OC-SORT-style recovery re-linked the wrong people in the crowd once appearance is strict.
     "recovery": False,

@@ -25,6 +25,12 @@ max_age                 int    60          0..=4294967295       xi: frames a con
                                                                 deleted
 appearance_threshold    float  0.2         [0, 2]               lambda: largest cosine distance for
                                                                 an appearance match (stage 1)
+appearance_apart        float  2.0         [0, 2]               largest cosine distance for an
+                                                                appearance match (stage 1) with a
+                                                                detection that does not overlap the
+                                                                track's predicted box (the smaller
+                                                                of this and appearance_threshold
+                                                                applies; 2: off)
 gallery_size            int    20          >= 1                 embeddings remembered per track,
                                                                 summarised in at most 8 rows (means
                                                                 of consecutive ones); the appearance

@@ -397,6 +397,8 @@ tracker_params! {
             "xi: frames a confirmed track survives unmatched before it is deleted";
         appearance_threshold: f64 = 0.2, closed(0.0, 2.0),
             "lambda: largest cosine distance for an appearance match (stage 1)";
+        appearance_apart: f64 = 2.0, closed(0.0, 2.0),
+            "largest cosine distance for an appearance match (stage 1) with a detection that does not overlap the track's predicted box (the smaller of this and appearance_threshold applies; 2: off)";
         gallery_size: usize = 20, ints(1, USIZE_MAX),
             "embeddings remembered per track, summarised in at most 8 rows (means of consecutive ones); the appearance cost is the smallest distance to a row";
         gate_radius: f64 = 1.0, open_closed(0.0, f64::INFINITY),

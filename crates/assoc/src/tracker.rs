@@ -2,7 +2,8 @@
 //! tracks stepped together, which is where crowd interaction enters), then associate in stages,
 //! each solved optimally:
 //!
-//! 1. appearance: cosine distance to the track's gallery (<= lambda), among detections within rho
+//! 1. appearance: cosine distance to the track's gallery (<= lambda; <= `appearance_apart`
+//!    too for a detection that does not overlap the predicted box), among detections within rho
 //!    of the predicted centre (only when embeddings are given);
 //! 2. motion: IoU between predicted boxes and the remaining detections (>= `iou_threshold`);
 //! 3. ByteTrack-style second pass: low-score detections can extend (never start) tracks;
@@ -275,7 +276,13 @@ impl Tracker {
                         continue;
                     }
                     let d = t.appearance_distance(emb_row(j).expect("embeddings present"));
-                    if d <= p.appearance_threshold {
+                    // A detection apart from the prediction needs the stricter threshold.
+                    let limit = if iou(&t.predicted, &dets[j]) > 0.0 {
+                        p.appearance_threshold
+                    } else {
+                        p.appearance_threshold.min(p.appearance_apart)
+                    };
+                    if d <= limit {
                         edges.push(Edge {
                             row: i,
                             col: j,

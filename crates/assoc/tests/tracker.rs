@@ -735,3 +735,60 @@ fn adaptive_smoothing_is_strong_for_a_flickering_detector_and_off_for_a_precise_
 fn the_pure_method_has_no_adaptive_smoothing() {
     assert_eq!(TrackerParams::pure().jitter_floor, 0.0);
 }
+
+/// A walker (appearance `a`) hidden for one frame while a bystander (appearance 0.22 from `a`
+/// in cosine distance) appears beside the walker's prediction, not overlapping it; then both are
+/// seen. Returns the ids reported on the walker's detection before and after, and on the
+/// bystander's detection in the frame the walker was hidden.
+fn bystander_beside_a_hidden_walker(apart: f64) -> (u64, Option<u64>, Option<u64>) {
+    let mut t = Tracker::new(TrackerParams {
+        n_init: 1,
+        appearance_threshold: 0.25,
+        appearance_apart: apart,
+        ..cv_params()
+    })
+    .unwrap();
+    // Unit vectors: cos(walker, bystander) = 0.78, a cosine distance of 0.22.
+    let walker: [f32; 2] = [1.0, 0.0];
+    let bystander: [f32; 2] = [0.78, (1.0f32 - 0.78 * 0.78).sqrt()];
+    let step = |t: &mut Tracker, boxes: &[[f64; 4]], emb: &[f32]| {
+        let flat: Vec<f64> = boxes.iter().flatten().copied().collect();
+        let scores = vec![1.0; boxes.len()];
+        let e = Some(Embeddings { data: emb, dim: 2 });
+        t.update(&flat, &scores, e).unwrap()
+    };
+    let x = |k: u32| 100.0 + 5.0 * f64::from(k);
+    let mut first = 0;
+    for k in 0..6 {
+        first = step(&mut t, &[bx(x(k), 200.0)], &walker)[0].id;
+    }
+    // Frame 6: the walker is hidden; the bystander stands 60 px beyond its prediction (boxes
+    // 40 px wide: no overlap, well within one box height).
+    let stand = x(6) + 60.0;
+    let hidden = step(&mut t, &[bx(stand, 200.0)], &bystander);
+    let on_bystander = hidden.iter().find(|o| o.det_index == Some(0)).map(|o| o.id);
+    let mut last = None;
+    for k in 7..10 {
+        let both: Vec<f32> = walker.iter().chain(&bystander).copied().collect();
+        let out = step(&mut t, &[bx(x(k), 200.0), bx(stand, 200.0)], &both);
+        last = out.iter().find(|o| o.det_index == Some(0)).map(|o| o.id);
+    }
+    (first, on_bystander, last)
+}
+
+#[test]
+fn a_stricter_appearance_apart_keeps_a_hidden_walkers_id_off_a_bystander() {
+    // Appearance alone (threshold 0.25): the hidden walker's track jumps to the bystander, and
+    // the walker comes back under another id.
+    let (first, on_bystander, last) = bystander_beside_a_hidden_walker(2.0);
+    assert_eq!(on_bystander, Some(first));
+    assert_ne!(last, Some(first));
+    // With 0.2 for detections apart from the prediction, the bystander starts its own track
+    // and the walker keeps its id.
+    let (first, on_bystander, last) = bystander_beside_a_hidden_walker(0.2);
+    assert_ne!(on_bystander, Some(first));
+    assert!(on_bystander.is_some());
+    assert_eq!(last, Some(first));
+    // The pure method leaves it off.
+    assert_eq!(TrackerParams::pure().appearance_apart, 2.0);
+}
