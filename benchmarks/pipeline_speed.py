@@ -16,7 +16,8 @@ in-process pass of our pipeline that splits detection into preprocessing, infere
 decoding and masks. ``--reuse`` adds a third process: `densepeds run` with re-ID reuse switched
 on (``ReID(reuse=True)``, which the pipeline does not do by default; see
 densepeds.reid.ReusePolicy). ``--int8 FILE`` adds `densepeds run --detector-model FILE`, the
-detector's int8 copy made by `densepeds models quantize` (densepeds.quantize). ``--memory``
+detector's int8 copy made by `densepeds models quantize` (densepeds.quantize), on the default
+tiles and on the grid. ``--memory``
 appends `benchmarks/memory.py`'s table; ``--write``
 writes the whole report as Markdown. Figures only: nothing is asserted.
 """
@@ -177,6 +178,8 @@ def compare(
     if args.int8 is not None:
         int8 = ["--detector-model", str(args.int8.resolve()), "--out", f"{tmp}/int8.txt"]
         cmds["ours+int8"] = [*run, *int8]
+        grid_int8 = ["--detector-model", str(args.int8.resolve()), "--tiles", tiles]
+        cmds["ours+int8 on the grid"] = [*run, *grid_int8, "--out", f"{tmp}/int8-grid.txt"]
     # `densepeds run` ends with "... N frames/s for the whole pipeline; timed: ... ms/frame)".
     markers = {name: "frames/s" for name in cmds} | {"reference": "reference:"}
     runs: dict[str, list[Run]] = {name: [] for name in names}
@@ -287,7 +290,7 @@ def main() -> int:
     if len(ranges) != len(seqs):
         raise SystemExit(f"give one frame range per sequence: {len(seqs)} vs {len(ranges)}")
     names = ["reference", "ours", "ours on the grid", *(["ours+reuse"] if args.reuse else [])]
-    names += ["ours+int8"] if args.int8 is not None else []
+    names += ["ours+int8", "ours+int8 on the grid"] if args.int8 is not None else []
     command = "OPENBLAS_NUM_THREADS=1 python benchmarks/pipeline_speed.py " + " ".join(sys.argv[1:])
     lines = [
         "# Speed: `densepeds run` against the reference pipeline",
