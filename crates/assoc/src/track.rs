@@ -139,6 +139,12 @@ impl Track {
         centre(&self.predicted)
     }
 
+    /// Whether the track was matched in the previous frame too (called before this frame's
+    /// match is applied): its one-frame prediction measures the detector's jitter.
+    pub fn is_followed(&self) -> bool {
+        self.time_since_update == 0 && self.hits > 1
+    }
+
     /// Updates the state from a matched detection in `frame`. `adaptive` is the weight of the
     /// prediction the detector's jitter calls for (`jitter_floor`), applied to a followed track
     /// (matched in the previous frame too): to its state, or with `jitter_smoothing_state` false
@@ -154,7 +160,7 @@ impl Track {
         adaptive: f64,
         p: &TrackerParams,
     ) {
-        let followed = self.time_since_update == 0 && self.hits > 1;
+        let followed = self.is_followed();
         let predicted = to_vec(centre(&self.predicted));
         let (state_w, sp) = match (followed, p.jitter_smoothing_state) {
             (false, _) => (0.0, 0.0),

@@ -416,7 +416,7 @@ impl Tracker {
                         );
                     }
                     self.perspective.observe(&dets[j]);
-                    if t.time_since_update == 0 && t.hits > 1 {
+                    if t.is_followed() {
                         let (d, pc) = (centre(&dets[j]), t.predicted_centre());
                         self.jitter.observe((d[0] - pc[0]).hypot(d[1] - pc[1]), t.h);
                     }
