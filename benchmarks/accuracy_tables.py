@@ -128,7 +128,8 @@ def _header(title: str, what: str) -> list[str]:
         "scored by `densepeds.evaluate` (trackeval, MOTChallenge rules).",
         "",
         "Package defaults: on det files the tracker's own defaults, chosen on "
-        f"{TUNED_ON['det']} (`results/tracker.md`): `{own}`. On the videos the CNN presets, "
+        f"{TUNED_ON['det']} (leave-one-out check in `results/accuracy-loo.md`): `{own}`. "
+        "On the videos the CNN presets, "
         f"chosen on {TUNED_ON['cnn']} (`results/realvideo.md`): "
         f"`{PRESETS['yoloseg'].describe()}`. Cells no default was "
         f"chosen on: {UNTUNED}.",

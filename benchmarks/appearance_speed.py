@@ -25,6 +25,8 @@ from densepeds.presets import get_preset
 from densepeds.tracking import Tracker
 
 NOISE = 0.015  # per-value noise on a unit 512-d embedding: cosine ~0.1 to the person's mean
+PEOPLE = (200, 800, 1670)  # about 180, 720 and 1,500 detections a frame
+DIM = 512  # OSNet's embedding size
 
 
 def crowd_with_embeddings(
@@ -71,9 +73,9 @@ def time_updates(people: int, frames: int, dim: int) -> tuple[float, float, floa
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--people", default="200,800,1670", help="about 180, 720, 1,500 detections")
+    ap.add_argument("--people", default=",".join(map(str, PEOPLE)), help="crowd sizes")
     ap.add_argument("--frames", type=int, default=30, help="timed frames after the warm-up")
-    ap.add_argument("--dim", type=int, default=512)
+    ap.add_argument("--dim", type=int, default=DIM)
     args = ap.parse_args()
     print(f"load average before: {os.getloadavg()[0]:.1f}")
     print("| people | detections/frame | update ms, median | p95 | CPU ms, median |")
