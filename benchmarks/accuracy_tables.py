@@ -67,6 +67,13 @@ CANDIDATES: dict[str, dict[str, Any]] = {
     "appearance_apart off": {"appearance_apart": 2.0},
     "appearance_apart 0.15": {"appearance_apart": 0.15},
     "appearance_apart 0.22": {"appearance_apart": 0.22},
+    "motion_person_height 80": {"motion_person_height": 80.0},
+    "motion_person_height 100": {"motion_person_height": 100.0},
+    "motion_person_height 160": {"motion_person_height": 160.0},
+    "ground_plane + motion_person_height 100": {
+        "ground_plane": True,
+        "motion_person_height": 100.0,
+    },
 }
 # What the package defaults were chosen on: update this where a default is tuned again.
 TUNED_ON = {
