@@ -67,18 +67,26 @@ CANDIDATES: dict[str, dict[str, Any]] = {
     "appearance_apart off": {"appearance_apart": 2.0},
     "appearance_apart 0.15": {"appearance_apart": 0.15},
     "appearance_apart 0.22": {"appearance_apart": 0.22},
+    "motion_person_height 80": {"motion_person_height": 80.0},
+    "motion_person_height 100": {"motion_person_height": 100.0},
+    "motion_person_height 0 (pixels)": {"motion_person_height": 0.0},
+    "ground_plane + motion_person_height 100": {
+        "ground_plane": True,
+        "motion_person_height": 100.0,
+    },
 }
 # What the package defaults were chosen on: update this where a default is tuned again.
 TUNED_ON = {
     "det": "the six `/det` cells together, motion only (the score reading, `score_scale` and "
-    "`score_quantile_floor`, `output_lost_adaptive`, `position_smoothing` and `jitter_floor` on "
-    "all 15 cells by leave-one-out, the `/frcnn` and `/int8` ones included)",
+    "`score_quantile_floor`, `output_lost_adaptive`, `position_smoothing`, `jitter_floor` and "
+    "`motion_person_height` on all 15 cells by leave-one-out, the `/frcnn` and `/int8` ones "
+    "included)",
     "cnn": "the two `/float` videos together (the score reading as above; "
-    "`appearance_apart` on all 15 cells by leave-one-out)",
+    "`appearance_apart` and `motion_person_height` on all 15 cells by leave-one-out)",
 }
 UNTUNED = (
     "every `/frcnn` and `/int8` cell for all but the score reading, `output_lost_adaptive`, "
-    "`position_smoothing`, `jitter_floor` and `appearance_apart`"
+    "`position_smoothing`, `jitter_floor`, `appearance_apart` and `motion_person_height`"
 )
 MOTION_ROWS = ("frvo", "rvo", "sf", "cv")
 FEATURE_ROWS = ("segmented", "bbox", "masked_pool", "none")

@@ -99,6 +99,7 @@ class TrackerKwargs(TypedDict, total=False):
     coast_damping: float
     amodal_boxes: bool
     ground_plane: bool
+    motion_person_height: float
     neighbor_radius: float
     max_neighbors: int
     time_horizon: float
@@ -154,6 +155,7 @@ class Tracker:
         coast_damping: float = 1.0,
         amodal_boxes: bool = False,
         ground_plane: bool = False,
+        motion_person_height: float = 160.0,
         neighbor_radius: float = 150.0,
         max_neighbors: int = 10,
         time_horizon: float = 5.0,

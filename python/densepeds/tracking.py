@@ -155,6 +155,16 @@ ground_plane            bool   False       True|False           motion on the gr
                                                                 fitted online (box height vs foot
                                                                 row), boxes scale with depth; image
                                                                 space until a fit holds
+motion_person_height    float  160.0       [0, inf)             the motion model's lengths
+                                                                (neighbor_radius, max_speed,
+                                                                sf_range, sf_strength) are pixels on
+                                                                a person this tall: each frame the
+                                                                crowd is scaled so that the median
+                                                                track box height (on the ground
+                                                                plane: the fitted height at the
+                                                                reference row) is this, so one
+                                                                setting means the same on every
+                                                                image scale (0: image pixels)
 neighbor_radius         float  150.0       (0, inf)             motion model: only agents closer
                                                                 than this (pixels) constrain each
                                                                 other

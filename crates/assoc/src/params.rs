@@ -461,6 +461,8 @@ tracker_params! {
             "a reported box whose lower part is hidden behind a nearer reported box is extended down to the height the fitted perspective expects from its top row (the whole person, as MOTChallenge annotates)";
         ground_plane: bool = false, Range::Bool,
             "motion on the ground: the motion model steps feet in ground coordinates from a perspective fitted online (box height vs foot row), boxes scale with depth; image space until a fit holds";
+        motion_person_height: f64 = 160.0, closed_open(0.0, f64::INFINITY),
+            "the motion model's lengths (neighbor_radius, max_speed, sf_range, sf_strength) are pixels on a person this tall: each frame the crowd is scaled so that the median track box height (on the ground plane: the fitted height at the reference row) is this, so one setting means the same on every image scale (0: image pixels)";
     }
     motion {
         neighbor_radius: f64, POSITIVE,
@@ -500,10 +502,11 @@ fn unknown(name: &str) -> TrackError {
 impl TrackerParams {
     /// The DensePeds paper's plain tracker (appearance then FRVO-predicted IoU, each solved
     /// optimally; no score thresholds, no second pass, no recovery, no size, position or
-    /// adaptive smoothing, only matched tracks reported). Equivalent to the keyword arguments
-    /// `det_threshold=-inf, new_track_threshold=-inf, second_pass=False, recovery=False,
-    /// size_smoothing=0, position_smoothing=0, jitter_floor=0, output_lost=0, occluded_output=0,
-    /// score_scale="absolute", score_quantile_floor=0`. Other fields keep their defaults.
+    /// adaptive smoothing, only matched tracks reported, the motion model in image pixels).
+    /// Equivalent to the keyword arguments `det_threshold=-inf, new_track_threshold=-inf,
+    /// second_pass=False, recovery=False, size_smoothing=0, position_smoothing=0,
+    /// jitter_floor=0, output_lost=0, occluded_output=0, score_scale="absolute",
+    /// score_quantile_floor=0, motion_person_height=0`. Other fields keep their defaults.
     pub fn pure() -> Self {
         Self {
             score_scale: ScoreScale::Absolute,
@@ -517,6 +520,7 @@ impl TrackerParams {
             jitter_floor: 0.0,
             output_lost: 0,
             occluded_output: 0,
+            motion_person_height: 0.0,
             ..Self::default()
         }
     }

@@ -115,6 +115,11 @@ impl GroundMap {
         self.depth(y) / self.d_ref()
     }
 
+    /// Box height of a person whose feet are on the reference row.
+    pub fn reference_height(&self) -> f64 {
+        self.k * self.d_ref()
+    }
+
     /// Height of a person whose head is at row `top`, from `h = k (top + h - y_h)`; `None`
     /// where the fit gives no finite positive answer.
     pub fn height_from_top(&self, top: f64) -> Option<f64> {
