@@ -67,12 +67,17 @@ CANDIDATES: dict[str, dict[str, Any]] = {
     "appearance_apart off": {"appearance_apart": 2.0},
     "appearance_apart 0.15": {"appearance_apart": 0.15},
     "appearance_apart 0.22": {"appearance_apart": 0.22},
+    "score_quantile_ceiling 0": {"score_quantile_ceiling": 0.0},
+    "score_quantile_ceiling 0.5": {"score_quantile_ceiling": 0.5},
+    "score_quantile_ceiling 0.9": {"score_quantile_ceiling": 0.9},
 }
 # What the package defaults were chosen on: update this where a default is tuned again.
 TUNED_ON = {
     "det": "the six `/det` cells together, motion only (the score reading, `score_scale` and "
     "`score_quantile_floor`, `output_lost_adaptive`, `position_smoothing` and `jitter_floor` on "
-    "all 15 cells by leave-one-out, the `/frcnn` and `/int8` ones included)",
+    "all 15 cells by leave-one-out, the `/frcnn` and `/int8` ones included; "
+    "`score_quantile_ceiling` by the same leave-one-out and by the 11 motion-only cells under "
+    "the score maps of `score-maps.md`)",
     "cnn": "the two `/float` videos together (the score reading as above; "
     "`appearance_apart` on all 15 cells by leave-one-out)",
 }
