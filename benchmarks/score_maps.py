@@ -1,15 +1,17 @@
-"""Accuracy when the detector's scores change scale: the motion-only dev cells with every
-detection's score passed through a monotone map (boxes unchanged), ours and the peers.
+"""Accuracy when the detector's scores change scale: dev cells (by default the motion-only ones)
+with every detection's score passed through a monotone map (boxes unchanged), ours and the peers.
 
     python benchmarks/score_maps.py                                   # print the table
     python benchmarks/score_maps.py --write benchmarks/results/score-maps.md
     python benchmarks/score_maps.py --trackers densepeds motpy --maps x0.3 cube
     python benchmarks/score_maps.py --ours score_quantile_ceiling=0 --ours max_age=30
+    python benchmarks/score_maps.py --cells '*/float' '*/int8'        # the video cells
 
 A detector other than the ones the defaults were chosen on may score the same boxes lower,
 higher or with another spread. Each map below stands for such a detector: the cells' boxes, and
-the order of their scores, stay as they are. Cells: the grid's motion-only cells
-(``accuracy_grid.py``: ``*/det`` and ``*/frcnn``), read from the same cache, tracked through
+the order of their scores, stay as they are. Cells: by default the grid's motion-only cells
+(``accuracy_grid.py``: ``*/det`` and ``*/frcnn``; ``--cells`` takes its patterns), read from the
+same cache (a video cell's scores are those the detector kept above its floor), tracked through
 ``densepeds.Pipeline.step`` and scored with ``densepeds.evaluate``. The figure per map and
 tracker is the mean HOTA over the cells, with the lowest cell. ``--ours KEY=VALUE`` adds a
 column: our tracker with that parameter changed (by default the score ceiling off, the rule
@@ -78,6 +80,7 @@ def hota_per_cell(
 
 def markdown(
     results: dict[str, dict[str, list[float]]],
+    patterns: Sequence[str],
     cells: Sequence[str],
     elapsed: float,
     load: tuple[float, float, float],
@@ -88,8 +91,8 @@ def markdown(
         "# Accuracy under a change of score scale",
         "",
         "Written by `python benchmarks/score_maps.py --write benchmarks/results/score-maps.md`.",
-        "Every detection's score on the motion-only dev cells (`"
-        + "`, `".join(CELLS)
+        "Every detection's score on the dev cells (`"
+        + "`, `".join(patterns)
         + f"`: {len(cells)} cells) is passed through a monotone map, the boxes unchanged, and "
         "every tracker runs with its package defaults (a `densepeds KEY=VALUE` column: ours with "
         "that one parameter changed). Mean HOTA over the cells (lowest cell in brackets); the "
@@ -127,6 +130,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     ap.add_argument("--cache", type=Path, default=grid.REPO / "out" / "cache")
+    ap.add_argument("--cells", nargs="+", default=list(CELLS), help="accuracy_grid cell patterns")
     ap.add_argument("--maps", nargs="+", choices=list(MAPS), default=list(MAPS))
     ap.add_argument("--trackers", nargs="+", default=list(TRACKERS))
     ap.add_argument(
@@ -151,7 +155,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         configs = {k: configs[k] for k in [*order, *(k for k in configs if k not in order)]}
     load = os.getloadavg()
     start = time.perf_counter()
-    cells = grid.select_cells(list(CELLS))
+    cells = grid.select_cells(args.cells)
     datas = [grid.load_cell(c, args.cache, quiet=True) for c in cells]
     results: dict[str, dict[str, list[float]]] = {}
     with tempfile.TemporaryDirectory(prefix="densepeds-maps-") as tmp:
@@ -161,7 +165,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                 hs = hota_per_cell(datas, config, MAPS[name][1], Path(tmp))
                 results[name][tracker] = hs
                 print(f"{name:9s} {tracker:22s} mean {np.mean(hs):6.2f} min {min(hs):6.2f}")
-    lines = markdown(results, [c.name for c in cells], time.perf_counter() - start, load)
+    lines = markdown(
+        results, args.cells, [c.name for c in cells], time.perf_counter() - start, load
+    )
     print("\n".join(lines))
     if args.write:
         args.write.write_text("\n".join(lines) + "\n")
