@@ -74,13 +74,17 @@ CANDIDATES: dict[str, dict[str, Any]] = {
         "ground_plane": True,
         "motion_person_height": 100.0,
     },
+    "score_quantile_ceiling 0": {"score_quantile_ceiling": 0.0},
+    "score_quantile_ceiling 0.5": {"score_quantile_ceiling": 0.5},
+    "score_quantile_ceiling 0.9": {"score_quantile_ceiling": 0.9},
 }
 # What the package defaults were chosen on: update this where a default is tuned again.
 TUNED_ON = {
     "det": "the six `/det` cells together, motion only (the score reading, `score_scale` and "
     "`score_quantile_floor`, `output_lost_adaptive`, `position_smoothing`, `jitter_floor` and "
     "`motion_person_height` on all 15 cells by leave-one-out, the `/frcnn` and `/int8` ones "
-    "included)",
+    "included; `score_quantile_ceiling` by the same leave-one-out and by the 11 motion-only cells "
+    "under the score maps of `score-maps.md`)",
     "cnn": "the two `/float` videos together (the score reading as above; "
     "`appearance_apart` and `motion_person_height` on all 15 cells by leave-one-out)",
 }

@@ -88,9 +88,29 @@ def test_quantile_floor_keeps_the_window_s_lowest_scores_from_starting_tracks(q:
         assert started(t, scores, row) == set(np.flatnonzero(scores >= cut).tolist())
 
 
+@pytest.mark.parametrize("ceiling", [0.5, 0.7, 1.0])
+def test_quantile_ceiling_tracks_a_detector_scoring_below_the_cuts(ceiling: float) -> None:
+    # Every score in [0, 0.25), below the 0.3 cuts: the cuts drop to the ceiling's quantile of
+    # the last scores and to 0.3 of the highest score seen, whichever is lower.
+    rng = np.random.default_rng(21)
+    window = 30
+    kw = dict(n_init=1, output_lost=0, score_warm_up=0, score_quantile_floor=0.0)
+    t = Tracker("cv", score_window=window, score_quantile_ceiling=ceiling, **kw)
+    off = Tracker("cv", score_quantile_ceiling=0.0, **kw)
+    seen: list[float] = []
+    for row in range(6):
+        scores = 0.25 * rng.random(int(rng.integers(3, 12)))
+        seen += scores.tolist()
+        q = np.quantile(seen[-window:], ceiling, method="inverted_cdf")
+        cut = min(q, 0.3 * max(seen))
+        assert started(t, scores, row) == set(np.flatnonzero(scores >= cut).tolist())
+        assert started(off, scores, row) == set()
+
+
 def test_absolute_scale_and_the_pure_tracker_read_scores_as_given() -> None:
     pure = Tracker(**PURE_PARAMS).params
     assert pure["score_scale"] == "absolute" and pure["score_quantile_floor"] == 0
+    assert pure["score_quantile_ceiling"] == 0
     t = Tracker("cv", n_init=1, output_lost=0, score_scale="absolute", new_track_threshold=0.6)
     scores = np.array([0.55, 0.6, 0.9, 0.59])
     assert started(t, scores, 0) == {1, 2}

@@ -78,6 +78,7 @@ class TrackerKwargs(TypedDict, total=False):
     score_scale: str
     score_window: int
     score_quantile_floor: float
+    score_quantile_ceiling: float
     score_warm_up: int
     low_iou_threshold: float
     low_max_age: int
@@ -134,6 +135,7 @@ class Tracker:
         score_scale: str = "absolute",
         score_window: int = 2000,
         score_quantile_floor: float = 0.15,
+        score_quantile_ceiling: float = 0.7,
         score_warm_up: int = 100,
         low_iou_threshold: float = 0.5,
         low_max_age: int = 60,

@@ -66,6 +66,19 @@ score_quantile_floor    float  0.15        [0, 1]               det_threshold an
                                                                 this quantile of the last
                                                                 score_window scores, after warm-up
                                                                 (0: off)
+score_quantile_ceiling  float  0.7         [0, 1]               where a cut rejects more than this
+                                                                fraction of the last score_window
+                                                                scores (before warm-up: every score
+                                                                seen), det_threshold and
+                                                                new_track_threshold are lowered to
+                                                                at most this quantile and to their
+                                                                place between 0 (or the lowest
+                                                                score, if lower) and the highest
+                                                                score seen, low_threshold to its
+                                                                place there too, so that a detector
+                                                                scoring below the cuts is still
+                                                                tracked (absolute score_scale only;
+                                                                0: off)
 score_warm_up           int    100         >= 0                 scores to see before the lowest one
                                                                 is taken for the detector's floor
                                                                 (range) or quantiles are used (rank;

@@ -419,6 +419,8 @@ tracker_params! {
             "scores (the last ones seen) whose quantiles the rank score scale reads thresholds as";
         score_quantile_floor: f64 = 0.15, UNIT,
             "det_threshold and new_track_threshold are at least this quantile of the last score_window scores, after warm-up (0: off)";
+        score_quantile_ceiling: f64 = 0.7, UNIT,
+            "where a cut rejects more than this fraction of the last score_window scores (before warm-up: every score seen), det_threshold and new_track_threshold are lowered to at most this quantile and to their place between 0 (or the lowest score, if lower) and the highest score seen, low_threshold to its place there too, so that a detector scoring below the cuts is still tracked (absolute score_scale only; 0: off)";
         score_warm_up: usize = 100, ints(0, USIZE_MAX),
             "scores to see before the lowest one is taken for the detector's floor (range) or quantiles are used (rank; range before)";
         low_iou_threshold: f64 = 0.5, UNIT,
@@ -506,11 +508,13 @@ impl TrackerParams {
     /// Equivalent to the keyword arguments `det_threshold=-inf, new_track_threshold=-inf,
     /// second_pass=False, recovery=False, size_smoothing=0, position_smoothing=0,
     /// jitter_floor=0, output_lost=0, occluded_output=0, score_scale="absolute",
-    /// score_quantile_floor=0, motion_person_height=0`. Other fields keep their defaults.
+    /// score_quantile_floor=0, score_quantile_ceiling=0, motion_person_height=0`. Other fields
+    /// keep their defaults.
     pub fn pure() -> Self {
         Self {
             score_scale: ScoreScale::Absolute,
             score_quantile_floor: 0.0,
+            score_quantile_ceiling: 0.0,
             det_threshold: f64::NEG_INFINITY,
             new_track_threshold: f64::NEG_INFINITY,
             second_pass: false,

@@ -15,6 +15,17 @@
 //! the window out of the matching stages and births: after warm-up, `det_threshold` and
 //! `new_track_threshold` are raised to at least the `q`-quantile of the last `window` scores.
 //!
+//! `score_quantile_ceiling` (a fraction `c`, 0: off) keeps a detector whose scores sit below the
+//! cuts from being ignored: where the `c`-quantile of the last `window` scores (before warm-up:
+//! the highest score seen) is below `det_threshold`, that cut is lowered to at most this quantile
+//! and to at most its ratio reading `lo + t * (hi - lo)`, `hi` the highest score seen and `lo`
+//! the lowest one or 0, whichever is lower, and `low_threshold` to at most its ratio reading;
+//! `new_track_threshold` likewise, compared with the same quantile. The ratio reading undoes a
+//! detector whose scores are today's multiplied by a constant; the quantile bounds any other
+//! monotone squeeze. A detector whose cuts reject fewer than a fraction `c` of its scores is
+//! read as before. The ceiling guards the absolute scale only: the range and rank scales follow
+//! the scores already. The quantile floor applies after the ceiling.
+//!
 //! The tracker converts its thresholds once per frame, after observing that frame's scores, and
 //! compares the raw scores with the converted cuts (a score passes a cut when `score >= cut`).
 
@@ -161,6 +172,17 @@ impl ScoreScaler {
         self.sorted[k]
     }
 
+    /// Threshold `t` read as a place between the detector's floor (the lowest score seen, or 0
+    /// where that is higher) and the highest score seen (`t` itself where that range is empty).
+    pub fn ratio_cut(&self, t: f64) -> f64 {
+        let lo = self.lo.min(0.0);
+        if self.seen > 0 && self.hi > lo && (self.hi - lo).is_finite() && t.is_finite() {
+            lo + t * (self.hi - lo)
+        } else {
+            t
+        }
+    }
+
     /// Observes one frame's scores, then returns `params` with its score thresholds
     /// (`det_threshold`, `new_track_threshold`, `low_threshold`) replaced by the raw cuts they
     /// stand for in `params.score_scale`.
@@ -173,6 +195,31 @@ impl ScoreScaler {
             &mut p.low_threshold,
         ] {
             *t = self.cut(p.score_scale, *t, p.score_warm_up);
+        }
+        if p.score_quantile_ceiling > 0.0 && self.seen > 0 && p.score_scale == ScoreScale::Absolute
+        {
+            let q = if self.seen >= p.score_warm_up {
+                self.quantile(p.score_quantile_ceiling)
+            } else {
+                self.hi
+            };
+            let starved = q < p.det_threshold;
+            let new_starved = q < p.new_track_threshold;
+            for (cut, t, gated) in [
+                (&mut p.det_threshold, params.det_threshold, starved),
+                (
+                    &mut p.new_track_threshold,
+                    params.new_track_threshold,
+                    new_starved,
+                ),
+            ] {
+                if gated {
+                    *cut = cut.min(q).min(self.ratio_cut(t));
+                }
+            }
+            if starved {
+                p.low_threshold = p.low_threshold.min(self.ratio_cut(params.low_threshold));
+            }
         }
         if p.score_quantile_floor > 0.0 && self.seen >= p.score_warm_up {
             let q = self.quantile(p.score_quantile_floor);

@@ -248,6 +248,7 @@ fn range_scale_reads_a_floor_cut_detector_from_its_floor() {
 fn pure_tracker_reads_scores_as_given_and_the_range_scale_reads_the_range() {
     assert_eq!(TrackerParams::pure().score_scale, ScoreScale::Absolute);
     assert_eq!(TrackerParams::pure().score_quantile_floor, 0.0);
+    assert_eq!(TrackerParams::pure().score_quantile_ceiling, 0.0);
     let p = TrackerParams {
         score_scale: ScoreScale::Range,
         ..TrackerParams::default()
@@ -261,4 +262,131 @@ fn pure_tracker_reads_scores_as_given_and_the_range_scale_reads_the_range() {
     let pure = TrackerParams::pure();
     let q = s.scaled(&pure, &[]);
     assert_eq!(q.det_threshold, f64::NEG_INFINITY);
+}
+
+#[test]
+fn quantile_ceiling_lowers_starved_cuts_to_the_window_quantile_and_ratio_reading() {
+    let mut rng = Lcg(17);
+    // (score offset, width, ceiling c, floor q, window, warm-up): scores squeezed below the cuts,
+    // as today, shifted up, and unbounded with negatives.
+    for (lo, width, c, q, window, warm_up) in [
+        (0.0, 0.3, 0.7, 0.0, 40, 30),
+        (0.0, 1.0, 0.5, 0.15, 25, 0),
+        (0.5, 0.5, 0.7, 0.0, 60, 10),
+        (-3.0, 6.0, 0.9, 0.1, 7, 12),
+        (0.0, 0.05, 1.0, 0.0, 100, 0),
+    ] {
+        let p = TrackerParams {
+            score_quantile_ceiling: c,
+            score_quantile_floor: q,
+            score_window: window,
+            score_warm_up: warm_up,
+            ..TrackerParams::default()
+        };
+        let mut s = ScoreScaler::new();
+        let mut all: Vec<f64> = Vec::new();
+        let mut lowered = 0;
+        for _ in 0..30 {
+            let n = (rng.next() * 6.0) as usize;
+            let scores: Vec<f64> = (0..n).map(|_| lo + width * rng.next()).collect();
+            let got = s.scaled(&p, &scores);
+            all.extend(&scores);
+            if all.is_empty() {
+                assert_eq!(got, p);
+                continue;
+            }
+            let last = &all[all.len().saturating_sub(window)..];
+            let hi = all.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            let floor_lo = all.iter().copied().fold(0.0, f64::min);
+            let ratio = |t: f64| floor_lo + t * (hi - floor_lo);
+            let warm = all.len() >= warm_up;
+            let ceiling = if warm { brute_quantile(last, c) } else { hi };
+            let floor = if warm && q > 0.0 {
+                brute_quantile(last, q)
+            } else {
+                f64::NEG_INFINITY
+            };
+            let guard = |t: f64| {
+                if ceiling < t {
+                    t.min(ceiling).min(ratio(t))
+                } else {
+                    t
+                }
+            };
+            let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b.abs().max(1.0);
+            let det = guard(p.det_threshold);
+            lowered += usize::from(det < p.det_threshold);
+            assert!(close(got.det_threshold, det.max(floor)));
+            assert!(close(
+                got.new_track_threshold,
+                guard(p.new_track_threshold).max(floor)
+            ));
+            let low = if ceiling < p.det_threshold {
+                p.low_threshold.min(ratio(p.low_threshold))
+            } else {
+                p.low_threshold
+            };
+            assert!(close(got.low_threshold, low));
+        }
+        // Squeezed scores lower the cuts; scores above them never do.
+        if width <= 0.3 {
+            assert!(lowered > 0, "offset {lo} width {width}");
+        }
+        if lo >= p.det_threshold {
+            assert_eq!(lowered, 0, "offset {lo} width {width}");
+        }
+    }
+}
+
+/// `people` rows of walkers with scores in [0.4, 1) (the first one 1.0) and clutter boxes
+/// scoring in [0.05, 0.3) (below the default cuts), each frame's scores multiplied by `gain`.
+fn scaled_scene(gain: f64) -> Vec<(Vec<f64>, Vec<f64>)> {
+    let mut rng = Lcg(29);
+    (0..40)
+        .map(|k| {
+            let mut boxes = Vec::new();
+            let mut scores = Vec::new();
+            for p in 0..5 {
+                boxes.extend(bx(
+                    100.0 + 4.0 * k as f64 + 30.0 * p as f64,
+                    150.0 * p as f64,
+                ));
+                let s = if k == 0 && p == 0 {
+                    1.0
+                } else {
+                    0.4 + 0.6 * rng.next()
+                };
+                scores.push(gain * s);
+            }
+            for _ in 0..2 {
+                boxes.extend(bx(2000.0 * rng.next(), 1000.0 * rng.next()));
+                scores.push(gain * (0.05 + 0.25 * rng.next()));
+            }
+            (boxes, scores)
+        })
+        .collect()
+}
+
+#[test]
+fn quantile_ceiling_tracks_a_detector_scaled_down_as_the_original() {
+    // 0.25 is a power of two: the scaled scores and cuts are the original ones times 0.25
+    // exactly, so the ratio reading of the scaled scores is the original cut exactly.
+    let p = TrackerParams {
+        motion: MotionKind::ConstantVelocity,
+        n_init: 1,
+        output_lost: 0,
+        ..TrackerParams::default()
+    };
+    assert!(p.score_quantile_ceiling > 0.0, "on by default");
+    let (frames, squeezed) = (scaled_scene(1.0), scaled_scene(0.25));
+    let original = track(p.clone(), &frames);
+    assert!(original.iter().all(|f| f.len() == 5), "{original:?}");
+    assert_eq!(track(p.clone(), &squeezed), original);
+    // Without the ceiling, every squeezed score (<= 0.25) is below the cuts: nothing is tracked.
+    let old = TrackerParams {
+        score_quantile_ceiling: 0.0,
+        ..p
+    };
+    assert_eq!(track(old.clone(), &frames), original);
+    assert!(track(old, &squeezed).iter().all(Vec::is_empty));
 }

@@ -220,16 +220,19 @@ fn second_pass_reaches_tracks_lost_up_to_low_max_age() {
 #[test]
 fn low_score_detections_start_no_track_by_default_but_do_in_the_pure_form() {
     let low = bx(100.0, 100.0);
+    // A detector seen so far scoring only 0.1 is read on its own scale by the quantile ceiling
+    // (tests/score_scale.rs); here a 0.1 beside a 0.9 is a low score.
+    let with_high = [low, bx(400.0, 100.0)].concat();
     for (params, expect) in [
-        (TrackerParams::default(), 0usize),
-        (TrackerParams::pure(), 1),
+        (TrackerParams::default(), 1usize),
+        (TrackerParams::pure(), 2),
     ] {
         let mut t = Tracker::new(TrackerParams {
             n_init: 1,
             ..params
         })
         .unwrap();
-        let out = t.update(&low, &[0.1], None).unwrap();
+        let out = t.update(&with_high, &[0.1, 0.9], None).unwrap();
         assert_eq!((out.len(), t.num_tracks()), (expect, expect));
     }
 }
