@@ -122,7 +122,7 @@ class Tracker:
         motion: str = "frvo",
         *,
         n_init: int = 2,
-        max_age: int = 60,
+        max_age: int = 120,
         appearance_threshold: float = 0.2,
         appearance_apart: float = 2.0,
         gallery_size: int = 20,

@@ -21,7 +21,7 @@ motion                  str    'frvo'      frvo|rvo|sf|cv       motion model pre
                                                                 next position
 n_init                  int    2           1..=4294967295       matches before a track is confirmed
                                                                 (gets an id and is reported)
-max_age                 int    60          0..=4294967295       xi: frames a confirmed track
+max_age                 int    120         0..=4294967295       xi: frames a confirmed track
                                                                 survives unmatched before it is
                                                                 deleted
 appearance_threshold    float  0.2         [0, 2]               lambda: largest cosine distance for

@@ -393,7 +393,7 @@ tracker_params! {
             "motion model predicting each track's next position";
         n_init: u32 = 2, ints(1, U32_MAX),
             "matches before a track is confirmed (gets an id and is reported)";
-        max_age: u32 = 60, ints(0, U32_MAX),
+        max_age: u32 = 120, ints(0, U32_MAX),
             "xi: frames a confirmed track survives unmatched before it is deleted";
         appearance_threshold: f64 = 0.2, closed(0.0, 2.0),
             "lambda: largest cosine distance for an appearance match (stage 1)";
