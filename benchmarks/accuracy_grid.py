@@ -15,6 +15,11 @@ The grid's cells are sequence x detection source:
   graph as shipped: ``dequantize=False``) and OSNet embeddings per feature kind, computed once by
   ``benchmarks/realvideo.py``'s cache (``out/cache``) exactly as ``densepeds run`` computes them.
 
+Optional sources, scored only where a ``--cells`` pattern names them and never in the grid's
+mean: ``ortq`` (the int8 copy of ``densepeds models quantize``), ``grid`` and ``ortq-grid`` (the
+float and int8 copies on the reference pipeline's fixed grid of tiles). ``--fast-table FILE``
+scores these beside the defaults on both videos and writes their table (``results/fast.md``).
+
 Every cell is tracked through ``densepeds.Pipeline.step`` (the code behind ``densepeds run``: a
 det file keeps the tracker's own defaults, a CNN detector gets the pipeline's presets) and scored
 with ``densepeds.evaluate``. ``--param`` overrides a default on every cell, ``--det-param`` on the
@@ -63,9 +68,18 @@ DETECTOR_OPTIONS: dict[str, dict[str, Any]] = {
     "float": {"quantized": False},
     "int8": {"dequantize": False, "quantized": False},
 }
-# Sources left out of the grid unless a --cells pattern names them: ``ortq``, the int8 copy made
-# by `densepeds models quantize` (found in $DENSEPEDS_MODEL_DIR; the float copy's tracker preset).
-OPTIONAL_SOURCES: dict[str, dict[str, Any]] = {"ortq": {"quantized": True}}
+# Stands for the reference's fixed grid of tiles (``densepeds.detect.tiling.auto_grid`` for the
+# video's frame size and the model's input), resolved per video by ``Cell.detector_options``.
+REFERENCE_GRID = "reference-grid"
+# Sources left out of the grid unless a --cells pattern names them (the fast settings): ``ortq``,
+# the int8 copy made by `densepeds models quantize` (found in $DENSEPEDS_MODEL_DIR), on the default
+# tiles; ``grid`` the float copy and ``ortq-grid`` the int8 copy on the reference's fixed grid.
+# All keep the package's tracker defaults and the yoloseg preset.
+OPTIONAL_SOURCES: dict[str, dict[str, Any]] = {
+    "ortq": {"quantized": True},
+    "grid": {"quantized": False, "tiles": REFERENCE_GRID},
+    "ortq-grid": {"quantized": True, "tiles": REFERENCE_GRID},
+}
 FEATURE_KINDS = ("segmented", "bbox", "masked_pool")
 SHOWN = ("HOTA", "IDF1", "MOTA", "IDSW", "FP", "FN")
 Rows = npt.NDArray[np.float64]  # [M, 8]: frame, id, x1, y1, x2, y2, score, matched (1/0)
@@ -86,7 +100,25 @@ class Cell:
 
     @property
     def detector_options(self) -> dict[str, Any]:
-        return {**DETECTOR_OPTIONS, **OPTIONAL_SOURCES}[self.source]
+        options = dict({**DETECTOR_OPTIONS, **OPTIONAL_SOURCES}[self.source])
+        if options.get("tiles") == REFERENCE_GRID:
+            options["tiles"] = reference_grid(SHARED / "data" / self.seq)
+        return options
+
+
+def reference_grid(seq_dir: Path) -> str:
+    """The fixed grid the reference pipeline runs on for this sequence (the shipped model's input),
+    as ``densepeds run --tiles`` takes it."""
+    from densepeds.detect.onnxutil import load_model
+    from densepeds.detect.tiling import auto_grid
+    from densepeds.motio import read_seqinfo
+
+    info = read_seqinfo(seq_dir)
+    model = load_model(realvideo.detector_file({"quantized": False}))
+    dims = [d.dim_value for d in model.graph.input[0].type.tensor_type.shape.dim]
+    input_size = max(dims[1:3] if dims[3] == 3 else dims[2:4])  # NHWC or NCHW
+    cols, rows = auto_grid(info.width, info.height, input_size)
+    return f"{cols}x{rows}"
 
 
 CELLS = (
@@ -277,6 +309,74 @@ def cell_table(result: Mapping[str, Mapping[str, float]], shown: Sequence[str] =
     return "\n".join(lines) + "\n"
 
 
+# The fast settings' table (``--fast-table``): each source on both videos, package defaults.
+FAST_SOURCES = {
+    "float": "defaults: float copy, tiles that follow the people",
+    "grid": "float copy on the reference's grid",
+    "ortq": "int8 copy, tiles that follow the people",
+    "ortq-grid": "int8 copy on the reference's grid",
+}
+FAST_COMMAND = (
+    "DENSEPEDS_MODEL_DIR=out/models:../shared/models OPENBLAS_NUM_THREADS=1 \\\n"
+    "        python benchmarks/accuracy_grid.py --fast-table benchmarks/results/fast.md"
+)
+
+
+def _ort_version() -> str:
+    import onnxruntime
+
+    return str(onnxruntime.__version__)
+
+
+def fast_table(cache: Path, quiet: bool = False) -> list[str]:
+    """HOTA / IDF1 per video for the fast settings (``FAST_SOURCES``), package defaults."""
+    from densepeds.errors import DensePedsError
+
+    config = Config()
+    cells = [Cell(seq, src) for src in FAST_SOURCES for seq in VIDEOS]
+    try:
+        grid = load_grid(cells, cache, (config.kind(),), quiet)
+    except DensePedsError as exc:
+        sys.exit(f"error: {exc}")
+    log = None if quiet else (lambda s: print(s, file=sys.stderr, flush=True))
+    result = score_grid(grid, config, progress=log)
+    metrics = ("HOTA", "DetA", "AssA", "IDF1")
+    head = " | ".join(f"{seq.split('-dev')[0]} {m}" for seq in VIDEOS for m in metrics)
+    lines = [
+        "# The fast settings' accuracy: grid tiles and the int8 copy",
+        "",
+        "Written by this command (do not edit; rerun it):",
+        "",
+        f"    {FAST_COMMAND}",
+        "",
+        f"The full pipeline on MOT20-01-dev frames {VIDEOS['MOT20-01-dev']} and PETS09-S2L1-dev "
+        f"frames {VIDEOS['PETS09-S2L1-dev']}: the shared segmenter's detections with each setting "
+        f"below, OSNet x0.25 embeddings ({config.kind()}), the package's tracker defaults and the "
+        "yoloseg preset, tracked through `densepeds.Pipeline.step` and scored with "
+        "`densepeds.evaluate` (detections and embeddings cached in `out/cache` by "
+        "`benchmarks/realvideo.py`). The int8 copy is the one `densepeds models quantize` makes "
+        "(`benchmarks/results/int8.md`); the reference's grid is "
+        "`densepeds.detect.tiling.auto_grid` for the frame size ("
+        + ", ".join(f"{c.seq} {c.detector_options['tiles']}" for c in cells if c.source == "grid")
+        + "). These cells are not part of the 15-cell dev grid or its mean "
+        f"(`accuracy.md`). onnxruntime {_ort_version()}. Speed of the same settings: `speed.md`.",
+        "",
+        f"| setting | {head} |",
+        "|---|" + "---:|" * (len(metrics) * len(VIDEOS)),
+    ]
+    for src, what in FAST_SOURCES.items():
+        vals = [result[f"{seq}/{src}"][m] for seq in VIDEOS for m in metrics]
+        lines.append(f"| {what} (`/{src}`) | " + " | ".join(f"{v:.2f}" for v in vals) + " |")
+    lines += ["", "Change against the defaults (HOTA):", ""]
+    for src, what in list(FAST_SOURCES.items())[1:]:
+        deltas = ", ".join(
+            f"{seq} {result[f'{seq}/{src}']['HOTA'] - result[f'{seq}/float']['HOTA']:+.2f}"
+            for seq in VIDEOS
+        )
+        lines.append(f"- {what}: {deltas}")
+    return lines
+
+
 def parse_value(text: str) -> Any:
     for kind in (int, float):
         try:
@@ -316,8 +416,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         nargs="+",
         help="with --write: only these (peers loo visibility claims scene realvideo)",
     )
+    ap.add_argument(
+        "--fast-table",
+        type=Path,
+        metavar="FILE",
+        help="score the fast settings (grid tiles, int8 copy) on the videos; write their table",
+    )
     ap.add_argument("--quiet", "-q", action="store_true")
     args = ap.parse_args(argv)
+    if args.fast_table:
+        text = "\n".join(fast_table(args.cache, args.quiet)) + "\n"
+        args.fast_table.write_text(text, encoding="utf-8")
+        print(text)
+        return 0
     if args.write:
         import accuracy_tables
 

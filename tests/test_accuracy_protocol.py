@@ -183,3 +183,26 @@ def test_peer_adapters_track_the_scene(scene: Scene) -> None:
                 assert np.mean(iou.max(1) > 0.3) > 0.8, name
             reported += len(ids)
         assert reported > 0.25 * sum(int((d.extra["gt_id"] > 0).sum()) for _, d in frames), name
+
+
+def test_fast_sources_run_on_the_reference_grid_and_stay_out_of_the_grid() -> None:
+    """``/grid`` and ``/ortq-grid`` cells get the tiles the reference runs on (pipeline_speed)."""
+    import pipeline_speed
+
+    shared_path("models", "yolov8n-seg-320-int8.onnx")
+    tiles = {}
+    for seq in grid.VIDEOS:
+        expected = pipeline_speed._tiles(shared_path("data", seq))
+        for source in ("grid", "ortq-grid"):
+            options = grid.Cell(seq, source).detector_options
+            assert options["tiles"] == expected
+            assert options["quantized"] == (source == "ortq-grid")
+        tiles[seq] = expected
+    assert tiles == {"MOT20-01-dev": "3x2", "PETS09-S2L1-dev": "2x2"}
+    assert grid.Cell("MOT20-01-dev", "float").detector_options == {"quantized": False}
+    chosen = grid.select_cells(["*/grid", "*/ortq-grid"])
+    assert sorted(c.name for c in chosen) == sorted(
+        f"{seq}/{src}" for seq in grid.VIDEOS for src in ("grid", "ortq-grid")
+    )
+    assert not {c.source for c in grid.CELLS} & set(grid.OPTIONAL_SOURCES)
+    assert len(grid.CELLS) == 15
