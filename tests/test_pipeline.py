@@ -78,6 +78,21 @@ def test_step_runs_detection_features_and_tracking() -> None:
     assert pipe.times.frames == 2 and pipe.times.seconds["detection"] > 0
 
 
+def test_run_frames_yields_the_detectors_detections(tmp_path: Path) -> None:
+    import cv2
+
+    for k in range(1, 4):
+        cv2.imwrite(str(tmp_path / f"{k:06d}.png"), FRAME)
+    detector = FixedDetector()
+    pipe = Pipeline(detector, features="none", tracker=RecordingTracker())
+    results = list(pipe.run_frames(tmp_path))
+    assert [r.frame_no for r in results] == [1, 2, 3] and detector.frames == 3
+    for r in results:
+        np.testing.assert_array_equal(r.detections.boxes, [[1, 2, 11, 42], [20, 5, 30, 45]])
+        np.testing.assert_allclose(r.detections.scores, [0.9, 0.4])
+        assert list(r.tracks.det_index) == [0, 1]
+
+
 def test_bad_options_and_inputs_are_clear_errors() -> None:
     tracker = RecordingTracker()
     with pytest.raises(ParameterError, match="motion"):

@@ -103,6 +103,10 @@ class StageTimes:
 
 @dataclass
 class FrameResult:
+    """One frame of ``Pipeline.run_frames``: its tracks, its image (None without images) and the
+    detections of the frame as the detector found them or the caller gave them, before the
+    pipeline's filter (``tracks.det_index`` refers to these)."""
+
     frame_no: int
     tracks: Tracks
     image: Image | None
@@ -221,6 +225,7 @@ class Pipeline:
             self._detector.reset()  # a loaded detector shared by a batch starts a new sequence
         self._detector_model = detector_model
         self._detector_options = dict(detector_options or {})
+        self._frame_detections = Detections.empty()  # the last frame's, for run_frames
         self._reid_spec = reid
         self._reid: Embedder | None = reid if hasattr(reid, "embed") else None  # type: ignore[assignment]
         options = {k: tracker_params.pop(k) for k in DETECTION_OPTIONS if k in tracker_params}
@@ -309,6 +314,7 @@ class Pipeline:
                 detections = self.detector()(frame)
         elif not isinstance(detections, Detections):
             raise InputError(f"detections must be densepeds.Detections, got {type(detections)}")
+        self._frame_detections = detections  # as found or given, before the pipeline's filter
         if embeddings is not None:
             embeddings = np.asarray(embeddings, np.float32)
             if embeddings.ndim != 2 or len(embeddings) != len(detections):
@@ -415,12 +421,7 @@ class Pipeline:
                 frame_dets = dets.get(frame_no) or Detections.empty()
             tracks = self.process(image, frame_dets)
             self.times.frames += 1
-            yield FrameResult(
-                frame_no,
-                tracks,
-                image,
-                frame_dets if frame_dets is not None else Detections.empty(),
-            )
+            yield FrameResult(frame_no, tracks, image, self._frame_detections)
 
     def source_detections(
         self,
