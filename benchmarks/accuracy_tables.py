@@ -40,6 +40,7 @@ COMMAND = "OPENBLAS_NUM_THREADS=1 python benchmarks/accuracy_grid.py --write"
 CANDIDATES: dict[str, dict[str, Any]] = {
     "package defaults": {},
     "max_age 30": {"max_age": 30},
+    "coast_aspect off": {"coast_aspect": False},
     "max_age 60": {"max_age": 60},
     "n_init 3": {"n_init": 3},
     "output_lost 0": {"output_lost": 0},
@@ -82,15 +83,16 @@ CANDIDATES: dict[str, dict[str, Any]] = {
 TUNED_ON = {
     "det": "the six `/det` cells together, motion only (the score reading, `score_scale` and "
     "`score_quantile_floor`, `max_age`, `output_lost_adaptive`, `position_smoothing`, "
-    "`jitter_floor` and `motion_person_height` on all 15 cells by leave-one-out, the `/frcnn` "
-    "and `/int8` ones included; `score_quantile_ceiling` by the same leave-one-out and by the "
-    "11 motion-only cells under the score maps of `score-maps.md`)",
+    "`jitter_floor`, `coast_aspect` and `motion_person_height` on all 15 cells by leave-one-out, "
+    "the `/frcnn` and `/int8` ones included; `score_quantile_ceiling` by the same leave-one-out "
+    "and by the 11 motion-only cells under the score maps of `score-maps.md`)",
     "cnn": "the two `/float` videos together (the score reading as above; "
     "`appearance_apart` and `motion_person_height` on all 15 cells by leave-one-out)",
 }
 UNTUNED = (
-    "every `/frcnn` and `/int8` cell for all but the score reading, `output_lost_adaptive`, "
-    "`position_smoothing`, `jitter_floor`, `appearance_apart` and `motion_person_height`"
+    "every `/frcnn` and `/int8` cell for all but the score reading, `score_quantile_ceiling`, "
+    "`max_age`, `output_lost_adaptive`, `position_smoothing`, `jitter_floor`, `coast_aspect`, "
+    "`appearance_apart` and `motion_person_height`"
 )
 MOTION_ROWS = ("frvo", "rvo", "sf", "cv")
 FEATURE_ROWS = ("segmented", "bbox", "masked_pool", "none")

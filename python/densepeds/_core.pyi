@@ -98,6 +98,7 @@ class TrackerKwargs(TypedDict, total=False):
     occluded_output: int
     occlusion_coverage: float
     coast_damping: float
+    coast_aspect: bool
     amodal_boxes: bool
     ground_plane: bool
     motion_person_height: float
@@ -155,6 +156,7 @@ class Tracker:
         occluded_output: int = 10,
         occlusion_coverage: float = 0.5,
         coast_damping: float = 1.0,
+        coast_aspect: bool = True,
         amodal_boxes: bool = False,
         ground_plane: bool = False,
         motion_person_height: float = 160.0,

@@ -156,6 +156,13 @@ coast_damping           float  1.0         [0, 1]               an unmatched tra
                                                                 velocity is multiplied by this for
                                                                 every frame it stays unmatched (1:
                                                                 kept)
+coast_aspect            bool   True        True|False           an unmatched track's reported box is
+                                                                at least as wide as its matched
+                                                                detections' mean aspect ratio (width
+                                                                over height, over the last 30
+                                                                matches) makes its height (an
+                                                                occluded person's last boxes are cut
+                                                                narrow)
 amodal_boxes            bool   False       True|False           a reported box whose lower part is
                                                                 hidden behind a nearer reported box
                                                                 is extended down to the height the

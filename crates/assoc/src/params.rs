@@ -459,6 +459,8 @@ tracker_params! {
             "covered fraction of an unmatched track's predicted box that means occluded";
         coast_damping: f64 = 1.0, UNIT,
             "an unmatched track's preferred velocity is multiplied by this for every frame it stays unmatched (1: kept)";
+        coast_aspect: bool = true, Range::Bool,
+            "an unmatched track's reported box is at least as wide as its matched detections' mean aspect ratio (width over height, over the last 30 matches) makes its height (an occluded person's last boxes are cut narrow)";
         amodal_boxes: bool = false, Range::Bool,
             "a reported box whose lower part is hidden behind a nearer reported box is extended down to the height the fitted perspective expects from its top row (the whole person, as MOTChallenge annotates)";
         ground_plane: bool = false, Range::Bool,
@@ -508,8 +510,8 @@ impl TrackerParams {
     /// Equivalent to the keyword arguments `det_threshold=-inf, new_track_threshold=-inf,
     /// second_pass=False, recovery=False, size_smoothing=0, position_smoothing=0,
     /// jitter_floor=0, output_lost=0, occluded_output=0, score_scale="absolute",
-    /// score_quantile_floor=0, score_quantile_ceiling=0, motion_person_height=0`. Other fields
-    /// keep their defaults.
+    /// score_quantile_floor=0, score_quantile_ceiling=0, motion_person_height=0,
+    /// coast_aspect=False`. Other fields keep their defaults.
     pub fn pure() -> Self {
         Self {
             score_scale: ScoreScale::Absolute,
@@ -524,6 +526,7 @@ impl TrackerParams {
             jitter_floor: 0.0,
             output_lost: 0,
             occluded_output: 0,
+            coast_aspect: false,
             motion_person_height: 0.0,
             ..Self::default()
         }

@@ -41,10 +41,15 @@ pub(crate) struct Track {
     /// Whether the track was occluded in the first frame of its current gap (unmatched run).
     pub gap_occluded: bool,
     pub score: f64,
+    /// Running mean of the matched detections' width over height.
+    pub aspect: f64,
     /// Detection matched in the current frame.
     pub det_index: Option<usize>,
     gallery: Gallery,
 }
+
+/// Matches the running mean of a track's aspect ratio averages over (then a moving average).
+const ASPECT_WINDOW: f64 = 30.0;
 
 fn to_vec(c: [f64; 2]) -> Vector2<f64> {
     Vector2::new(c[0], c[1])
@@ -57,9 +62,10 @@ impl Track {
         score: f64,
         frame: u64,
         embedding: Option<&[f32]>,
-        gallery_size: usize,
+        p: &TrackerParams,
     ) -> Self {
         let c = to_vec(centre(&bbox));
+        let gallery_size = p.gallery_size;
         let mut t = Self {
             id: 0,
             confirmed: false,
@@ -80,6 +86,7 @@ impl Track {
             occluded: false,
             gap_occluded: false,
             score,
+            aspect: (bbox[2] - bbox[0]) / (bbox[3] - bbox[1]).max(f64::MIN_POSITIVE),
             det_index: Some(det_index),
             gallery: Gallery::new(gallery_size),
         };
@@ -169,6 +176,7 @@ impl Track {
         };
         let raw = to_vec(centre(&det));
         let c = raw * (1.0 - state_w) + predicted * state_w;
+
         let gap = frame.saturating_sub(self.last_obs_frame).max(1) as f64;
         // Observation-centric: the velocity spans the gap since the last real observation,
         // not the drifted prediction, and the preferred velocity is measured on the detections
@@ -191,6 +199,10 @@ impl Track {
         };
         let s = p.size_smoothing;
         let (dw, dh) = (det[2] - det[0], det[3] - det[1]);
+        let aspect = dw / dh.max(f64::MIN_POSITIVE);
+        if aspect.is_finite() {
+            self.aspect += (aspect - self.aspect) / f64::from(self.hits + 1).min(ASPECT_WINDOW);
+        }
         // The reported centre: the state's, pulled toward this frame's prediction when the
         // track was also matched in the previous frame.
         if s > 0.0 || sp > 0.0 || state_w > 0.0 {
@@ -215,13 +227,19 @@ impl Track {
         }
     }
 
-    /// No detection this frame: move to the prediction.
-    pub fn coast(&mut self) {
+    /// No detection this frame: move to the prediction; with `keep_aspect` (`coast_aspect`) the
+    /// reported box is at least as wide as the track's mean aspect ratio makes its height.
+    pub fn coast(&mut self, keep_aspect: bool) {
         self.pos += self.pred_vel;
         self.vel = self.pred_vel;
         self.w *= self.pred_scale;
         self.h *= self.pred_scale;
         self.bbox = self.predicted;
+        let wide = self.aspect * (self.bbox[3] - self.bbox[1]);
+        if keep_aspect && wide > self.bbox[2] - self.bbox[0] && wide.is_finite() {
+            let c = centre(&self.bbox);
+            self.bbox = box_from_centre(c, wide, self.bbox[3] - self.bbox[1]);
+        }
         self.time_since_update += 1;
         if self.time_since_update == 1 {
             self.gap_occluded = self.occluded;

@@ -427,7 +427,7 @@ impl Tracker {
                         self.next_id += 1;
                     }
                 }
-                None => t.coast(),
+                None => t.coast(self.params.coast_aspect),
             }
         }
         let mut k = 0;
@@ -447,7 +447,7 @@ impl Tracker {
         // New tracks from unmatched high-score detections.
         for j in 0..n {
             if det_track[j].is_none() && high(j) && scores[j] >= p.new_track_threshold {
-                let mut t = Track::new(j, dets[j], scores[j], frame, emb_row(j), p.gallery_size);
+                let mut t = Track::new(j, dets[j], scores[j], frame, emb_row(j), &p);
                 if p.n_init <= 1 {
                     t.confirmed = true;
                     t.id = self.next_id;

@@ -117,3 +117,38 @@ fn on_the_ground_plane_a_walker_coming_closer_is_predicted_growing_and_speeding_
     );
     assert!(ground > image + 0.05, "ground {ground} vs image {image}");
 }
+
+/// A person standing still, seen whole (40 x 100) for ten frames, then cut narrow (20 x 100)
+/// for two, then missed: the reported box of the lost track.
+fn narrowed_then_lost(coast_aspect: bool) -> [f64; 4] {
+    let mut t = Tracker::new(TrackerParams {
+        coast_aspect,
+        position_smoothing: 0.0,
+        jitter_floor: 0.0,
+        ..params(3)
+    })
+    .unwrap();
+    for _ in 0..10 {
+        run(&mut t, &[[100.0, 50.0, 140.0, 150.0]]);
+    }
+    for _ in 0..2 {
+        run(&mut t, &[[110.0, 50.0, 130.0, 150.0]]);
+    }
+    let out = run(&mut t, &[]);
+    assert_eq!(out.len(), 1, "the lost track is reported");
+    out[0].bbox
+}
+
+#[test]
+fn a_lost_track_is_reported_as_wide_as_its_mean_aspect_ratio() {
+    // Mean width over height of the twelve matched boxes, times the height.
+    let mean_aspect = (10.0 * 0.4 + 2.0 * 0.2) / 12.0;
+    let b = narrowed_then_lost(true);
+    assert!(((b[2] - b[0]) - mean_aspect * 100.0).abs() < 1e-9, "{b:?}");
+    assert!(
+        (cx(&b) - 120.0).abs() < 1e-9 && (b[3] - b[1] - 100.0).abs() < 1e-9,
+        "{b:?}"
+    );
+    let narrow = narrowed_then_lost(false);
+    assert!(((narrow[2] - narrow[0]) - 20.0).abs() < 1e-9, "{narrow:?}");
+}
