@@ -41,6 +41,8 @@ CANDIDATES: dict[str, dict[str, Any]] = {
     "package defaults": {},
     "max_age 30": {"max_age": 30},
     "coast_aspect off": {"coast_aspect": False},
+    "coast_aspect_state off": {"coast_aspect_state": False},
+    "coast_aspect_state on": {"coast_aspect_state": True},
     "max_age 60": {"max_age": 60},
     "n_init 3": {"n_init": 3},
     "output_lost 0": {"output_lost": 0},
@@ -87,7 +89,8 @@ TUNED_ON = {
     "the `/frcnn` and `/int8` ones included; `score_quantile_ceiling` by the same leave-one-out "
     "and by the 11 motion-only cells under the score maps of `score-maps.md`)",
     "cnn": "the two `/float` videos together (the score reading as above; "
-    "`appearance_apart` and `motion_person_height` on all 15 cells by leave-one-out)",
+    "`appearance_apart` and `motion_person_height` on all 15 cells by leave-one-out; "
+    "`coast_aspect_state` on the two `/float` videos, checked by leave-one-out)",
 }
 UNTUNED = (
     "every `/frcnn` and `/int8` cell for all but the score reading, `score_quantile_ceiling`, "

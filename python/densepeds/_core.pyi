@@ -99,6 +99,7 @@ class TrackerKwargs(TypedDict, total=False):
     occlusion_coverage: float
     coast_damping: float
     coast_aspect: bool
+    coast_aspect_state: bool
     amodal_boxes: bool
     ground_plane: bool
     motion_person_height: float
@@ -157,6 +158,7 @@ class Tracker:
         occlusion_coverage: float = 0.5,
         coast_damping: float = 1.0,
         coast_aspect: bool = True,
+        coast_aspect_state: bool = False,
         amodal_boxes: bool = False,
         ground_plane: bool = False,
         motion_person_height: float = 160.0,

@@ -100,6 +100,9 @@ _CNN_APPEARANCE: dict[str, float | int | bool] = {
     # A segmenter's box covers the visible part of a person: complete the boxes whose lower part
     # is hidden behind a nearer person to the whole person (what the ground truth annotates).
     "amodal_boxes": True,
+    # A lost person's last boxes are cut narrow by the people in front: the lost track keeps its
+    # usual width (coast_aspect) for matching too, so that it is found again when it reappears.
+    "coast_aspect_state": True,
     # Report lost tracks for output_lost / occluded_output frames whatever the sequence's record:
     # on the two videos the adaptive rule (the tracker's default) reports fewer right boxes.
     "output_lost_adaptive": False,

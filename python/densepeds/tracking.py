@@ -163,6 +163,11 @@ coast_aspect            bool   True        True|False           an unmatched tra
                                                                 matches) makes its height (an
                                                                 occluded person's last boxes are cut
                                                                 narrow)
+coast_aspect_state      bool   False       True|False           with coast_aspect, the unmatched
+                                                                track's own width widens too, and
+                                                                with it the predicted box it is
+                                                                matched by (not only the reported
+                                                                box)
 amodal_boxes            bool   False       True|False           a reported box whose lower part is
                                                                 hidden behind a nearer reported box
                                                                 is extended down to the height the

@@ -461,6 +461,8 @@ tracker_params! {
             "an unmatched track's preferred velocity is multiplied by this for every frame it stays unmatched (1: kept)";
         coast_aspect: bool = true, Range::Bool,
             "an unmatched track's reported box is at least as wide as its matched detections' mean aspect ratio (width over height, over the last 30 matches) makes its height (an occluded person's last boxes are cut narrow)";
+        coast_aspect_state: bool = false, Range::Bool,
+            "with coast_aspect, the unmatched track's own width widens too, and with it the predicted box it is matched by (not only the reported box)";
         amodal_boxes: bool = false, Range::Bool,
             "a reported box whose lower part is hidden behind a nearer reported box is extended down to the height the fitted perspective expects from its top row (the whole person, as MOTChallenge annotates)";
         ground_plane: bool = false, Range::Bool,

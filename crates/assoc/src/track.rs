@@ -227,18 +227,22 @@ impl Track {
         }
     }
 
-    /// No detection this frame: move to the prediction; with `keep_aspect` (`coast_aspect`) the
-    /// reported box is at least as wide as the track's mean aspect ratio makes its height.
-    pub fn coast(&mut self, keep_aspect: bool) {
+    /// No detection this frame: move to the prediction; with `coast_aspect` the reported box is
+    /// at least as wide as the track's mean aspect ratio makes its height, and with
+    /// `coast_aspect_state` the track's own width too.
+    pub fn coast(&mut self, p: &TrackerParams) {
         self.pos += self.pred_vel;
         self.vel = self.pred_vel;
         self.w *= self.pred_scale;
         self.h *= self.pred_scale;
         self.bbox = self.predicted;
         let wide = self.aspect * (self.bbox[3] - self.bbox[1]);
-        if keep_aspect && wide > self.bbox[2] - self.bbox[0] && wide.is_finite() {
+        if p.coast_aspect && wide > self.bbox[2] - self.bbox[0] && wide.is_finite() {
             let c = centre(&self.bbox);
             self.bbox = box_from_centre(c, wide, self.bbox[3] - self.bbox[1]);
+            if p.coast_aspect_state {
+                self.w = self.w.max(self.aspect * self.h);
+            }
         }
         self.time_since_update += 1;
         if self.time_since_update == 1 {

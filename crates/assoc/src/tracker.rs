@@ -427,7 +427,7 @@ impl Tracker {
                         self.next_id += 1;
                     }
                 }
-                None => t.coast(self.params.coast_aspect),
+                None => t.coast(&p),
             }
         }
         let mut k = 0;

@@ -121,8 +121,18 @@ fn on_the_ground_plane_a_walker_coming_closer_is_predicted_growing_and_speeding_
 /// A person standing still, seen whole (40 x 100) for ten frames, then cut narrow (20 x 100)
 /// for two, then missed: the reported box of the lost track.
 fn narrowed_then_lost(coast_aspect: bool) -> [f64; 4] {
+    let mut t = narrowed_tracker(coast_aspect, false);
+    run(&mut t, &[])
+        .first()
+        .expect("the lost track is reported")
+        .bbox
+}
+
+/// The tracker after the ten whole and two narrow frames.
+fn narrowed_tracker(coast_aspect: bool, coast_aspect_state: bool) -> Tracker {
     let mut t = Tracker::new(TrackerParams {
         coast_aspect,
+        coast_aspect_state,
         position_smoothing: 0.0,
         jitter_floor: 0.0,
         ..params(3)
@@ -134,9 +144,7 @@ fn narrowed_then_lost(coast_aspect: bool) -> [f64; 4] {
     for _ in 0..2 {
         run(&mut t, &[[110.0, 50.0, 130.0, 150.0]]);
     }
-    let out = run(&mut t, &[]);
-    assert_eq!(out.len(), 1, "the lost track is reported");
-    out[0].bbox
+    t
 }
 
 #[test]
@@ -151,4 +159,20 @@ fn a_lost_track_is_reported_as_wide_as_its_mean_aspect_ratio() {
     );
     let narrow = narrowed_then_lost(false);
     assert!(((narrow[2] - narrow[0]) - 20.0).abs() < 1e-9, "{narrow:?}");
+}
+
+#[test]
+fn with_coast_aspect_state_a_lost_track_is_matched_at_its_usual_width() {
+    // Lost for two frames, the person reappears whole, 20 px to the right: IoU 0.2 with the
+    // narrow prediction (below iou_threshold 0.3), 0.31 with the usual width's.
+    let reappear = |state: bool| {
+        let mut t = narrowed_tracker(true, state);
+        let id = run(&mut t, &[[110.0, 50.0, 130.0, 150.0]])[0].id;
+        run(&mut t, &[]);
+        run(&mut t, &[]);
+        let out = run(&mut t, &[[120.0, 50.0, 160.0, 150.0]]);
+        out.iter().any(|o| o.id == id && o.det_index == Some(0))
+    };
+    assert!(reappear(true), "matched again at the usual width");
+    assert!(!reappear(false), "the narrow prediction misses it");
 }
