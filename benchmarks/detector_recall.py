@@ -101,7 +101,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--option", action="append", default=[], help="KEY=VALUE for the detector")
     ap.add_argument("--write", type=Path, help="also write a Markdown table here")
     args = ap.parse_args(argv)
-    base = accuracy_grid.parse_params(args.option)
+    # The float copy or the graph as shipped, never an int8 copy found in the model folders
+    # (``densepeds models quantize``) unless an --option asks for it.
+    base = {"quantized": False, **accuracy_grid.parse_params(args.option)}
     if args.int8:
         base["dequantize"] = False
     load = f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores"
