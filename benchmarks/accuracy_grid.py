@@ -48,6 +48,7 @@ import numpy.typing as npt
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import peers  # noqa: E402
+import pipeline_speed  # noqa: E402
 import realvideo  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
@@ -102,23 +103,8 @@ class Cell:
     def detector_options(self) -> dict[str, Any]:
         options = dict({**DETECTOR_OPTIONS, **OPTIONAL_SOURCES}[self.source])
         if options.get("tiles") == REFERENCE_GRID:
-            options["tiles"] = reference_grid(SHARED / "data" / self.seq)
+            options["tiles"] = pipeline_speed.reference_tiles(SHARED / "data" / self.seq)
         return options
-
-
-def reference_grid(seq_dir: Path) -> str:
-    """The fixed grid the reference pipeline runs on for this sequence (the shipped model's input),
-    as ``densepeds run --tiles`` takes it."""
-    from densepeds.detect.onnxutil import load_model
-    from densepeds.detect.tiling import auto_grid
-    from densepeds.motio import read_seqinfo
-
-    info = read_seqinfo(seq_dir)
-    model = load_model(realvideo.detector_file({"quantized": False}))
-    dims = [d.dim_value for d in model.graph.input[0].type.tensor_type.shape.dim]
-    input_size = max(dims[1:3] if dims[3] == 3 else dims[2:4])  # NHWC or NCHW
-    cols, rows = auto_grid(info.width, info.height, input_size)
-    return f"{cols}x{rows}"
 
 
 CELLS = (

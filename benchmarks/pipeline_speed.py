@@ -129,8 +129,9 @@ def profile(seq_dir: Path, frames: str, threads: int) -> dict[str, float]:
     return out
 
 
-def _tiles(seq_dir: Path) -> str:
-    """The tiles our detector picks for the sequence's frame size (the reference gets the same)."""
+def reference_tiles(seq_dir: Path) -> str:
+    """The fixed grid of tiles the reference runs on for the sequence's frame size (`ours on the
+    grid` gets the same), as ``densepeds run --tiles`` takes it."""
     from densepeds.detect.tiling import auto_grid
     from densepeds.motio import read_seqinfo
 
@@ -148,7 +149,7 @@ def compare(
         raise SystemExit(f"{seq_dir}: missing (set DENSEPEDS_SHARED to the shared data folder)")
     pin = _cpu_prefix(args.threads)
     features = _default_features()
-    tiles = _tiles(seq_dir)
+    tiles = reference_tiles(seq_dir)
     nice = ["nice", "-n", str(args.nice)] if args.nice else []
     run = [*nice, *pin, sys.executable, "-m", "densepeds", "run", str(seq_dir)]
     run += ["--detector", "yoloseg", "--frames", frames, "-q"]

@@ -192,7 +192,7 @@ def test_fast_sources_run_on_the_reference_grid_and_stay_out_of_the_grid() -> No
     shared_path("models", "yolov8n-seg-320-int8.onnx")
     tiles = {}
     for seq in grid.VIDEOS:
-        expected = pipeline_speed._tiles(shared_path("data", seq))
+        expected = pipeline_speed.reference_tiles(shared_path("data", seq))
         for source in ("grid", "ortq-grid"):
             options = grid.Cell(seq, source).detector_options
             assert options["tiles"] == expected

@@ -62,10 +62,9 @@ impl Track {
         score: f64,
         frame: u64,
         embedding: Option<&[f32]>,
-        p: &TrackerParams,
+        gallery_size: usize,
     ) -> Self {
         let c = to_vec(centre(&bbox));
-        let gallery_size = p.gallery_size;
         let mut t = Self {
             id: 0,
             confirmed: false,

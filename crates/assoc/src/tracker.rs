@@ -447,7 +447,7 @@ impl Tracker {
         // New tracks from unmatched high-score detections.
         for j in 0..n {
             if det_track[j].is_none() && high(j) && scores[j] >= p.new_track_threshold {
-                let mut t = Track::new(j, dets[j], scores[j], frame, emb_row(j), &p);
+                let mut t = Track::new(j, dets[j], scores[j], frame, emb_row(j), p.gallery_size);
                 if p.n_init <= 1 {
                     t.confirmed = true;
                     t.id = self.next_id;
