@@ -81,6 +81,7 @@ class TrackerKwargs(TypedDict, total=False):
     score_quantile_ceiling: float
     score_warm_up: int
     low_iou_threshold: float
+    thresholded_low_iou: float
     low_max_age: int
     recovery: bool
     recovery_iou_threshold: float
@@ -140,6 +141,7 @@ class Tracker:
         score_quantile_ceiling: float = 0.7,
         score_warm_up: int = 100,
         low_iou_threshold: float = 0.5,
+        thresholded_low_iou: float = 0.3,
         low_max_age: int = 60,
         recovery: bool = True,
         recovery_iou_threshold: float = 0.3,

@@ -84,6 +84,16 @@ score_warm_up           int    100         >= 0                 scores to see be
                                                                 (range) or quantiles are used (rank;
                                                                 range before)
 low_iou_threshold       float  0.5         [0, 1]               smallest IoU for a second-pass match
+thresholded_low_iou     float  0.3         [0, 1]               from a detector that thresholds its
+                                                                own output (every score seen so far
+                                                                at or above det_threshold and
+                                                                new_track_threshold as the score
+                                                                scale reads them), a detection that
+                                                                only score_quantile_floor kept out
+                                                                of stages 1-2 is matched in the
+                                                                second pass at the smaller of this
+                                                                IoU and low_iou_threshold (1:
+                                                                low_iou_threshold alone)
 low_max_age             int    60          0..=4294967295       tracks unmatched up to this many
                                                                 frames join the second pass (0:
                                                                 ByteTrack's rule)

@@ -425,6 +425,8 @@ tracker_params! {
             "scores to see before the lowest one is taken for the detector's floor (range) or quantiles are used (rank; range before)";
         low_iou_threshold: f64 = 0.5, UNIT,
             "smallest IoU for a second-pass match";
+        thresholded_low_iou: f64 = 0.3, UNIT,
+            "from a detector that thresholds its own output (every score seen so far at or above det_threshold and new_track_threshold as the score scale reads them), a detection that only score_quantile_floor kept out of stages 1-2 is matched in the second pass at the smaller of this IoU and low_iou_threshold (1: low_iou_threshold alone)";
         low_max_age: u32 = 60, ints(0, U32_MAX),
             "tracks unmatched up to this many frames join the second pass (0: ByteTrack's rule)";
         recovery: bool = true, Range::Bool,
@@ -511,9 +513,9 @@ impl TrackerParams {
     /// adaptive smoothing, only matched tracks reported, the motion model in image pixels).
     /// Equivalent to the keyword arguments `det_threshold=-inf, new_track_threshold=-inf,
     /// second_pass=False, recovery=False, size_smoothing=0, position_smoothing=0,
-    /// jitter_floor=0, output_lost=0, occluded_output=0, score_scale="absolute",
-    /// score_quantile_floor=0, score_quantile_ceiling=0, motion_person_height=0,
-    /// coast_aspect=False`. Other fields keep their defaults.
+    /// jitter_floor=0, thresholded_low_iou=1, output_lost=0, occluded_output=0,
+    /// score_scale="absolute", score_quantile_floor=0, score_quantile_ceiling=0,
+    /// motion_person_height=0, coast_aspect=False`. Other fields keep their defaults.
     pub fn pure() -> Self {
         Self {
             score_scale: ScoreScale::Absolute,
@@ -526,6 +528,7 @@ impl TrackerParams {
             size_smoothing: 0.0,
             position_smoothing: 0.0,
             jitter_floor: 0.0,
+            thresholded_low_iou: 1.0,
             output_lost: 0,
             occluded_output: 0,
             coast_aspect: false,

@@ -79,6 +79,8 @@ pub struct ScoreScaler {
     /// The last scores in arrival order, and the same scores sorted.
     recent: VecDeque<f64>,
     sorted: Vec<f64>,
+    /// The last frame's confident cut (see [`ScoreScaler::confident_cut`]).
+    confident_cut: f64,
 }
 
 impl Default for ScoreScaler {
@@ -95,6 +97,7 @@ impl ScoreScaler {
             hi: f64::NEG_INFINITY,
             recent: VecDeque::new(),
             sorted: Vec::new(),
+            confident_cut: f64::NEG_INFINITY,
         }
     }
 
@@ -148,6 +151,19 @@ impl ScoreScaler {
                 }
             }
         }
+    }
+
+    /// The score from which a detection of the last [`ScoreScaler::scaled`] call was confident
+    /// by the cuts as the score scale (and `score_quantile_ceiling`) read them, before
+    /// `score_quantile_floor` raised them: the larger of `det_threshold` and
+    /// `new_track_threshold` there.
+    pub fn confident_cut(&self) -> f64 {
+        self.confident_cut
+    }
+
+    /// The lowest score seen (`inf` before any).
+    pub fn lowest(&self) -> f64 {
+        self.lo
     }
 
     /// The `t`-quantile of the last scores kept: the smallest of them with at least a fraction
@@ -221,6 +237,7 @@ impl ScoreScaler {
                 p.low_threshold = p.low_threshold.min(self.ratio_cut(params.low_threshold));
             }
         }
+        self.confident_cut = p.det_threshold.max(p.new_track_threshold);
         if p.score_quantile_floor > 0.0 && self.seen >= p.score_warm_up {
             let q = self.quantile(p.score_quantile_floor);
             p.det_threshold = p.det_threshold.max(q);

@@ -6,7 +6,9 @@
 //!    too for a detection that does not overlap the predicted box), among detections within rho
 //!    of the predicted centre (only when embeddings are given);
 //! 2. motion: IoU between predicted boxes and the remaining detections (>= `iou_threshold`);
-//! 3. ByteTrack-style second pass: low-score detections can extend (never start) tracks;
+//! 3. ByteTrack-style second pass: low-score detections can extend (never start) tracks (at a
+//!    smaller overlap, `thresholded_low_iou`, where the detector thresholds its own output
+//!    and only the quantile floor made them low);
 //! 4. OC-SORT-style recovery of lost tracks by their last observed box;
 //!
 //! then update, age and delete tracks and start new ones. An unmatched confirmed track is
@@ -346,6 +348,16 @@ impl Tracker {
             let low_index = DetIndex::new(&dets, |j| {
                 scores[j] >= p.low_threshold && scores[j] < p.det_threshold
             });
+            // From a detector that thresholds its own output (every score seen so far would pass
+            // det_threshold and new_track_threshold as given), nothing is low in ByteTrack's
+            // sense: what reaches this pass was held back by the quantile floor alone and
+            // extends a track at a smaller overlap.
+            let scale = &self.scores_seen;
+            let band_iou = if scale.lowest() >= scale.confident_cut() {
+                p.low_iou_threshold.min(p.thresholded_low_iou)
+            } else {
+                p.low_iou_threshold
+            };
             iou_edges(
                 &self.tracks,
                 &track_det,
@@ -353,10 +365,10 @@ impl Tracker {
                 &low_index,
                 &|t| t.time_since_update <= p.low_max_age,
                 &|t| t.predicted,
-                p.low_iou_threshold,
+                band_iou,
                 &mut edges,
             );
-            let pairs = self.matcher.solve(nt, n, &edges, 1.0 - p.low_iou_threshold);
+            let pairs = self.matcher.solve(nt, n, &edges, 1.0 - band_iou);
             record(&pairs, &mut track_det, &mut det_track);
         }
 

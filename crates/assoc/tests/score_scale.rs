@@ -390,3 +390,67 @@ fn quantile_ceiling_tracks_a_detector_scaled_down_as_the_original() {
     assert_eq!(track(old.clone(), &frames), original);
     assert!(track(old, &squeezed).iter().all(Vec::is_empty));
 }
+
+/// A walker's id at the first and the last frame of a scene from a detector that thresholds its
+/// own output (every score >= 0.5, above det_threshold and new_track_threshold; `stray` adds one
+/// far-away 0.1 detection in frame 1, so that the detector has low scores too): the
+/// walker goes right at 5 px a frame, full boxes scored 0.98 among five bystanders at 0.97;
+/// in frames 31-45 only its upper 45% is seen (the legs hidden), scored 0.8, the bottom of the
+/// detector's scores, which the quantile floor keeps out of stages 1-2; it stops at frame 39,
+/// and from frame 46 it is seen whole again.
+fn walker_ids(thresholded_low_iou: f64, stray: bool) -> (u64, u64) {
+    let (w, h) = (40.0, 100.0);
+    let params = TrackerParams {
+        thresholded_low_iou,
+        ..TrackerParams::default()
+    };
+    let mut t = Tracker::new(params).unwrap();
+    let mut ids = Vec::new();
+    let mut x = 100.0;
+    for frame in 1..=60u32 {
+        if frame <= 38 {
+            x += 5.0;
+        }
+        let hidden = (31..=45).contains(&frame);
+        let walker = if hidden {
+            [x, 200.0, x + w, 200.0 + 0.45 * h]
+        } else {
+            [x, 200.0, x + w, 200.0 + h]
+        };
+        let mut boxes: Vec<f64> = walker.to_vec();
+        let mut scores = vec![if hidden { 0.8 } else { 0.98 }];
+        for k in 0..5 {
+            let bx = 600.0 + 120.0 * f64::from(k);
+            boxes.extend([bx, 100.0, bx + w, 100.0 + h]);
+            scores.push(0.97);
+        }
+        if stray && frame == 1 {
+            boxes.extend([1500.0, 900.0, 1540.0, 1000.0]);
+            scores.push(0.1);
+        }
+        let out = t.update(&boxes, &scores, None).unwrap();
+        if let Some(o) = out.iter().find(|o| o.det_index == Some(0)) {
+            ids.push(o.id);
+        }
+    }
+    (ids[0], *ids.last().unwrap())
+}
+
+#[test]
+fn a_thresholded_detectors_bottom_scores_extend_tracks_at_the_stage_2_overlap() {
+    // The cut-short boxes overlap the walker's predicted box by IoU 0.45: below low_iou_threshold
+    // (0.5), above iou_threshold (0.3).
+    let p = TrackerParams::default();
+    assert!(p.iou_threshold <= 0.45 && 0.45 < p.low_iou_threshold);
+    assert_eq!(p.thresholded_low_iou, 0.3);
+    // The rule on: the partly hidden walker is followed through its stop and keeps its id.
+    let (first, last) = walker_ids(0.3, false);
+    assert_eq!(first, last);
+    // Off: its track coasts on past the stop, and the walker seen whole again gets a new id.
+    let (first, last) = walker_ids(1.0, false);
+    assert_ne!(first, last);
+    // A detector that also gives low scores (one 0.1 ever) keeps ByteTrack's rule.
+    let (first, last) = walker_ids(0.3, true);
+    assert_ne!(first, last);
+    assert_eq!(TrackerParams::pure().thresholded_low_iou, 1.0);
+}
