@@ -243,3 +243,57 @@ def test_smaller_input_size_runs_the_same_network_on_smaller_crops() -> None:
     assert np.all(cos > 0.5) and np.all(cos < 0.9999)
     with pytest.raises(ModelError):
         ReID(model, threads=1, input_size=(0, 64))
+
+
+def test_flip_averaging_makes_a_mirrored_crop_give_the_same_embedding() -> None:
+    model = shared_path("models", "osnet_x0_25_msmt17.onnx")
+    rng = np.random.default_rng(4)
+    crops = [rng.integers(0, 256, (160, 70, 3), dtype=np.uint8) for _ in range(3)]
+    mirrored = [c[:, ::-1].copy() for c in crops]
+    plain = ReID(model, threads=1)
+    flip = ReID(model, threads=1, flip=True, batch_size=2)  # a batch boundary inside the crops
+    # Without flipping a random crop and its mirror embed differently ...
+    a, b = plain.embed_crops(crops), plain.embed_crops(mirrored)
+    assert (1 - np.sum(a * b, axis=1)).min() > 1e-3
+    # ... with it they give the same unit row: the mean of the two directions, renormalised.
+    fa, fb = flip.embed_crops(crops), flip.embed_crops(mirrored)
+    np.testing.assert_allclose(fa, fb, atol=1e-5)
+    np.testing.assert_allclose(np.linalg.norm(fa, axis=1), 1.0, rtol=1e-5)
+    expected = a + b
+    expected /= np.linalg.norm(expected, axis=1, keepdims=True)
+    np.testing.assert_allclose(fa, expected, atol=1e-5)
+    # Mask-weighted pooling mirrors the weights with the crop.
+    frame = rng.integers(0, 256, (200, 200, 3), np.uint8)
+    box = np.array([[20, 20, 90, 180]], float)
+    mask = np.zeros((160, 70), bool)
+    mask[:, :30] = True
+    dets = Detections(box, np.ones(1), [mask], box.astype(np.int32))
+    mirror_frame = frame[:, ::-1].copy()
+    mbox = np.array([[110, 20, 180, 180]], float)
+    mdets = Detections(mbox, np.ones(1), [mask[:, ::-1].copy()], mbox.astype(np.int32))
+    np.testing.assert_allclose(
+        flip.embed(frame, dets, "masked_pool"),
+        flip.embed(mirror_frame, mdets, "masked_pool"),
+        atol=1e-5,
+    )
+
+
+def test_context_margin_widens_the_crop_the_model_sees() -> None:
+    model = shared_path("models", "osnet_x0_25_msmt17.onnx")
+    rng = np.random.default_rng(5)
+    frame = rng.integers(0, 256, (300, 300, 3), np.uint8)
+    box = np.array([[100, 50, 160, 230]], float)  # 60 x 180
+    dets = Detections(box, np.ones(1))
+    wide = ReID(model, threads=1, context=0.1)
+    # The crop is the box grown by 10% of its width and height on each side.
+    np.testing.assert_allclose(
+        wide.embed(frame, dets, "bbox"),
+        wide.embed_crops([frame[32:248, 94:166]]),
+        atol=1e-6,
+    )
+    plain = ReID(model, threads=1)
+    assert (
+        1 - float(np.sum(plain.embed(frame, dets, "bbox") * wide.embed(frame, dets, "bbox"))) > 1e-3
+    )
+    with pytest.raises(ParameterError):
+        ReID(model, context=-0.1)

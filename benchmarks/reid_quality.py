@@ -1,0 +1,221 @@
+"""How well the re-ID embeddings tell a person from the people near them, on both videos' gt.
+
+    OPENBLAS_NUM_THREADS=1 python benchmarks/reid_quality.py \
+        --write benchmarks/results/reid-quality.md
+
+The detections and embeddings are those the tracker gets on the float video cells (the shared
+segmenter's float copy, cached by ``benchmarks/realvideo.py`` in ``out/cache``). Each frame's
+detections are matched one-to-one to the ground truth (IoU >= 0.5, Hungarian); the rest are left
+out. For a gap of ``k`` frames, every person matched in frames ``t`` and ``t + k`` gives a probe
+(their embedding at ``t + k``), its *positive* (their own embedding at ``t``) and its *nearby
+negatives*: the other people matched at ``t`` whose box centre lies within ``NEAR`` of the
+person's box heights of theirs at ``t`` (the people a tracker can confuse them with). Columns:
+
+- ``AUC``: the probability that a probe's nearby negative is farther from it (cosine distance)
+  than its positive, over all (probe, nearby negative) pairs of the video and gap (ties count
+  half);
+- ``wrong``: of the probes with at least one nearby negative, the share whose nearest
+  embedding at ``t`` is a nearby other person, not themselves;
+- ``wrong (gallery)``: the same with each person at ``t`` represented by their embeddings in
+  frames ``t - GALLERY + 1 .. t`` and the distance to the nearest of them (as the tracker's
+  gallery does).
+
+Lower ``wrong`` and higher ``AUC`` are better. Kinds are those of ``realvideo.kind_options``
+(a feature kind with optional ``+flip`` / ``+ctxF``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np
+import numpy.typing as npt
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import realvideo  # noqa: E402
+
+REPO = Path(__file__).resolve().parent.parent
+GAPS = (1, 10, 30)
+NEAR = 1.5  # nearby: box centres within this many of the person's box heights
+GALLERY = 10  # frames of a person's past embeddings in the gallery measure
+MIN_IOU = 0.5
+SOURCE = {"quantized": False}  # the float video cells' detections
+KINDS = ("segmented", "bbox", "masked_pool")
+COMMAND = (
+    "OPENBLAS_NUM_THREADS=1 python benchmarks/reid_quality.py "
+    "--write benchmarks/results/reid-quality.md"
+)
+
+
+@dataclass
+class Matched:
+    """Per frame: gt ids, box centres and heights, and row indices into the frame's detections."""
+
+    ids: list[npt.NDArray[np.int64]]
+    centres: list[npt.NDArray[np.float64]]
+    heights: list[npt.NDArray[np.float64]]
+    rows: list[npt.NDArray[np.intp]]
+
+
+def match_gt(video: realvideo.CachedVideo) -> Matched:
+    """Each frame's detections matched to its ground-truth people (IoU >= MIN_IOU)."""
+    from densepeds._core import linear_sum_assignment
+    from densepeds.boxes import iou_matrix
+    from densepeds.motio import read_gt
+
+    gt = read_gt(video.seq_dir / "gt" / "gt.txt")
+    if gt.shape[1] >= 9 and np.all(gt[:, 7] >= 0):  # MOT17/20 layout: flag, class, visibility
+        gt = gt[(gt[:, 6] == 1) & (gt[:, 7] == 1)]
+    out = Matched([], [], [], [])
+    for k, dets in enumerate(video.dets):
+        g = gt[gt[:, 0] == video.first + k]
+        boxes = np.c_[g[:, 2:4], g[:, 2:4] + g[:, 4:6]]
+        ids = np.zeros(0, np.int64)
+        rows = np.zeros(0, np.intp)
+        if len(g) and len(dets):
+            iou = iou_matrix(boxes, dets.boxes.astype(np.float64))
+            r, c = linear_sum_assignment(-iou)
+            good = iou[r, c] >= MIN_IOU
+            r, c = r[good], c[good]
+            ids, rows = g[r, 1].astype(np.int64), np.asarray(c, np.intp)
+            boxes = boxes[r]
+        else:
+            boxes = np.zeros((0, 4))
+        out.ids.append(ids)
+        out.rows.append(rows)
+        out.centres.append((boxes[:, :2] + boxes[:, 2:]) / 2)
+        out.heights.append(boxes[:, 3] - boxes[:, 1])
+    return out
+
+
+@dataclass(frozen=True)
+class Quality:
+    probes: int  # probes with at least one nearby negative
+    pairs: int  # (positive, nearby negative) pairs
+    auc: float
+    wrong: float
+    wrong_gallery: float
+
+
+def quality(
+    matched: Matched, emb: Sequence[npt.NDArray[np.float32]], gap: int, gallery: int = GALLERY
+) -> Quality:
+    """The measures of the module docstring for one video, kind and gap."""
+    frames = len(matched.ids)
+    person = [e[r].astype(np.float64) for e, r in zip(emb, matched.rows, strict=True)]
+    pos_all: list[float] = []
+    neg_all: list[npt.NDArray[np.float64]] = []
+    wrong = wrong_gal = probes = 0
+    for t in range(frames - gap):
+        a_ids, b_ids = matched.ids[t], matched.ids[t + gap]
+        if not len(a_ids) or not len(b_ids):
+            continue
+        dist = 1.0 - person[t + gap] @ person[t].T  # [probe at t+k, person at t]
+        where = {int(p): i for i, p in enumerate(a_ids)}
+        near = (
+            np.linalg.norm(matched.centres[t][:, None] - matched.centres[t][None], axis=2)
+            <= NEAR * matched.heights[t][:, None]
+        )
+        # Gallery distances: nearest over each person's embeddings in frames t-gallery+1..t.
+        gal = np.full((len(b_ids), len(a_ids)), np.inf)
+        for s in range(max(0, t - gallery + 1), t + 1):
+            idx = [where.get(int(p), -1) for p in matched.ids[s]]
+            keep = [i for i, j in enumerate(idx) if j >= 0]
+            if keep:
+                d = 1.0 - person[t + gap] @ person[s][keep].T
+                cols = np.asarray([idx[i] for i in keep])
+                gal[:, cols] = np.minimum(gal[:, cols], d)
+        for i, p in enumerate(b_ids):
+            j = where.get(int(p))
+            if j is None:
+                continue
+            others = np.flatnonzero(near[j])
+            others = others[others != j]
+            if not len(others):
+                continue
+            probes += 1
+            pos_all.append(dist[i, j])
+            neg_all.append(dist[i, others])
+            wrong += int(dist[i, others].min() < dist[i, j])
+            wrong_gal += int(gal[i, others].min() < gal[i, j])
+    neg = np.concatenate(neg_all) if neg_all else np.zeros(0)
+    pos = np.asarray(pos_all)
+    # Each probe's positive is paired with its own negatives only: AUC over those pairs.
+    paired = [d[:, None] > p for p, d in zip(pos, neg_all, strict=True)]
+    ties = [d[:, None] == p for p, d in zip(pos, neg_all, strict=True)]
+    n_pairs = len(neg)
+    a = (
+        float((sum(x.sum() for x in paired) + 0.5 * sum(x.sum() for x in ties)) / n_pairs)
+        if n_pairs
+        else float("nan")
+    )
+    return Quality(probes, n_pairs, a, wrong / max(probes, 1), wrong_gal / max(probes, 1))
+
+
+def table(results: dict[tuple[str, str, int], Quality], kinds: Sequence[str]) -> list[str]:
+    lines = []
+    for seq, _ in realvideo.VIDEOS:
+        lines += [
+            f"**{seq}**",
+            "",
+            "| kind | "
+            + " | ".join(f"AUC k={k} | wrong k={k} | wrong (gallery) k={k}" for k in GAPS)
+            + " | probes k=1 |",
+            "|---|" + "---:|" * (3 * len(GAPS) + 1),
+        ]
+        for kind in kinds:
+            cells = []
+            for k in GAPS:
+                q = results[(seq, kind, k)]
+                cells += [f"{q.auc:.4f}", f"{100 * q.wrong:.2f}%", f"{100 * q.wrong_gallery:.2f}%"]
+            cells.append(str(results[(seq, kind, GAPS[0])].probes))
+            lines.append(f"| {kind} | " + " | ".join(cells) + " |")
+        lines.append("")
+    return lines
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument("--cache", type=Path, default=REPO / "out" / "cache")
+    ap.add_argument("--kinds", default=",".join(KINDS), help="embedding kinds, comma-separated")
+    ap.add_argument("--write", type=Path, help="also write the table to this markdown file")
+    ap.add_argument("--quiet", "-q", action="store_true")
+    args = ap.parse_args(argv)
+    kinds = args.kinds.split(",")
+    results: dict[tuple[str, str, int], Quality] = {}
+    for seq, frames in realvideo.VIDEOS:
+        video = realvideo.load_video(seq, frames, kinds, args.cache, SOURCE, args.quiet)
+        matched = match_gt(video)
+        for kind in kinds:
+            for k in GAPS:
+                results[(seq, kind, k)] = quality(matched, video.embeddings[kind], k)
+    lines = table(results, kinds)
+    print("\n".join(lines))
+    if args.write:
+        head = [
+            "# Re-ID quality: the same person against the people near them",
+            "",
+            "Written by this command (do not edit; rerun it):",
+            "",
+            f"    {COMMAND}" + ("" if args.kinds == ",".join(KINDS) else f" --kinds {args.kinds}"),
+            "",
+            f"Detections of the float video cells matched to gt (IoU >= {MIN_IOU}); nearby: box "
+            f"centres within {NEAR} box heights; gallery: the last {GALLERY} frames. "
+            "Definitions: `benchmarks/reid_quality.py`.",
+            "",
+        ]
+        args.write.write_text("\n".join(head + lines) + "\n", encoding="utf-8")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
