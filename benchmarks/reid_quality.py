@@ -21,7 +21,9 @@ person's box heights of theirs at ``t`` (the people a tracker can confuse them w
   gallery does).
 
 Lower ``wrong`` and higher ``AUC`` are better. Kinds are those of ``realvideo.kind_options``
-(a feature kind with optional ``+flip`` / ``+ctxF``).
+(a feature kind with optional ``+flip`` / ``+ctxF``). ``--time N`` also times each kind's
+``ReID.embed`` (the call ``densepeds run`` makes) on the first N frames of each video, the kinds
+interleaved frame by frame, and prints the machine's load.
 """
 
 from __future__ import annotations
@@ -159,6 +161,30 @@ def quality(
     return Quality(probes, n_pairs, a, wrong / max(probes, 1), wrong_gal / max(probes, 1))
 
 
+def embed_cost(
+    video: realvideo.CachedVideo, frames: str, kinds: Sequence[str], count: int
+) -> dict[str, float]:
+    """Milliseconds per frame of ``ReID.embed`` per kind over the first ``count`` frames."""
+    import time
+
+    from densepeds.reid import ReID
+
+    models = {}
+    for kind in kinds:
+        features, options = realvideo.kind_options(kind)
+        models[kind] = (features, ReID(**options))
+    spent = dict.fromkeys(kinds, 0.0)
+    for k, (_, image) in enumerate(realvideo._frames(video.seq_dir, frames)):
+        if k >= count:
+            break
+        for kind, (features, reid) in models.items():
+            t0 = time.perf_counter()
+            reid.embed(image, video.dets[k], features=features)
+            spent[kind] += time.perf_counter() - t0
+    n = min(count, len(video.dets))
+    return {kind: 1000 * t / max(n, 1) for kind, t in spent.items()}
+
+
 def table(results: dict[tuple[str, str, int], Quality], kinds: Sequence[str]) -> list[str]:
     lines = []
     for seq, _ in realvideo.VIDEOS:
@@ -188,9 +214,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--cache", type=Path, default=REPO / "out" / "cache")
     ap.add_argument("--kinds", default=",".join(KINDS), help="embedding kinds, comma-separated")
     ap.add_argument("--write", type=Path, help="also write the table to this markdown file")
+    ap.add_argument("--time", type=int, default=0, metavar="N", help="time re-ID on N frames")
     ap.add_argument("--quiet", "-q", action="store_true")
     args = ap.parse_args(argv)
     kinds = args.kinds.split(",")
+    costs: dict[str, dict[str, float]] = {}
     results: dict[tuple[str, str, int], Quality] = {}
     for seq, frames in realvideo.VIDEOS:
         video = realvideo.load_video(seq, frames, kinds, args.cache, SOURCE, args.quiet)
@@ -198,7 +226,30 @@ def main(argv: Sequence[str] | None = None) -> int:
         for kind in kinds:
             for k in GAPS:
                 results[(seq, kind, k)] = quality(matched, video.embeddings[kind], k)
+        if args.time:
+            costs[seq] = embed_cost(video, frames, kinds, args.time)
     lines = table(results, kinds)
+    if costs:
+        crops = {
+            seq: np.mean([len(d) for d in v.dets[: args.time]])
+            for seq, v in (
+                (s, realvideo.load_video(s, f, [], args.cache, SOURCE, True))
+                for s, f in realvideo.VIDEOS
+            )
+        }
+        lines += [
+            f"Re-ID cost, ms per frame (`ReID.embed`, first {args.time} frames, kinds "
+            f"interleaved; load {' / '.join(f'{x:.1f}' for x in os.getloadavg())}, "
+            f"{os.cpu_count()} cores):",
+            "",
+            "| kind | " + " | ".join(f"{seq} ({crops[seq]:.0f} crops)" for seq in costs) + " |",
+            "|---|" + "---:|" * len(costs),
+        ]
+        for kind in kinds:
+            lines.append(
+                f"| {kind} | " + " | ".join(f"{costs[seq][kind]:.1f}" for seq in costs) + " |"
+            )
+        lines.append("")
     print("\n".join(lines))
     if args.write:
         head = [
@@ -206,7 +257,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             "",
             "Written by this command (do not edit; rerun it):",
             "",
-            f"    {COMMAND}" + ("" if args.kinds == ",".join(KINDS) else f" --kinds {args.kinds}"),
+            f"    {COMMAND}"
+            + ("" if args.kinds == ",".join(KINDS) else f" --kinds {args.kinds}")
+            + (f" --time {args.time}" if args.time else ""),
             "",
             f"Detections of the float video cells matched to gt (IoU >= {MIN_IOU}); nearby: box "
             f"centres within {NEAR} box heights; gallery: the last {GALLERY} frames. "
