@@ -23,7 +23,9 @@ person's box heights of theirs at ``t`` (the people a tracker can confuse them w
 Lower ``wrong`` and higher ``AUC`` are better. Kinds are those of ``realvideo.kind_options``
 (a feature kind with optional ``+flip`` / ``+ctxF``). ``--time N`` also times each kind's
 ``ReID.embed`` (the call ``densepeds run`` makes) on the first N frames of each video, the kinds
-interleaved frame by frame, and prints the machine's load.
+interleaved frame by frame, and prints the machine's load. ``--track`` also tracks each kind on
+the four video cells (``accuracy_grid.py --cells '*/float' '*/int8' --features KIND``, package
+defaults) and gives their HOTA.
 """
 
 from __future__ import annotations
@@ -104,6 +106,8 @@ class Quality:
     auc: float
     wrong: float
     wrong_gallery: float
+    pos_q95: float  # 95th percentile of the positives' distance
+    neg_q05: float  # 5th percentile of the nearby negatives' distance
 
 
 def quality(
@@ -158,7 +162,23 @@ def quality(
         if n_pairs
         else float("nan")
     )
-    return Quality(probes, n_pairs, a, wrong / max(probes, 1), wrong_gal / max(probes, 1))
+    q95 = float(np.percentile(pos, 95)) if len(pos) else float("nan")
+    q05 = float(np.percentile(neg, 5)) if len(neg) else float("nan")
+    return Quality(probes, n_pairs, a, wrong / max(probes, 1), wrong_gal / max(probes, 1), q95, q05)
+
+
+def frame_scale(video: realvideo.CachedVideo, emb: Sequence[npt.NDArray[np.float32]]) -> float:
+    """Median cosine distance between nearby detections of one frame (no gt: all detections)."""
+    out: list[npt.NDArray[np.float64]] = []
+    for dets, e in zip(video.dets, emb, strict=True):
+        if len(e) < 2:
+            continue
+        b = dets.boxes.astype(np.float64)
+        c = (b[:, :2] + b[:, 2:]) / 2
+        near = np.linalg.norm(c[:, None] - c[None], axis=2) <= NEAR * (b[:, 3] - b[:, 1])[:, None]
+        np.fill_diagonal(near, False)
+        out.append((1.0 - e.astype(np.float64) @ e.astype(np.float64).T)[near])
+    return float(np.median(np.concatenate(out))) if out else float("nan")
 
 
 def embed_cost(
@@ -185,7 +205,35 @@ def embed_cost(
     return {kind: 1000 * t / max(n, 1) for kind, t in spent.items()}
 
 
-def table(results: dict[tuple[str, str, int], Quality], kinds: Sequence[str]) -> list[str]:
+def tracked(cache: Path, kinds: Sequence[str]) -> list[str]:
+    """HOTA of each kind on the four video cells at the package defaults."""
+    import accuracy_grid
+
+    cells = accuracy_grid.select_cells(["*/float", "*/int8"])
+    grid = accuracy_grid.load_grid(cells, cache, kinds, quiet=True)
+    lines = [
+        "Tracked with each kind (package defaults; `accuracy_grid.py --cells '*/float' "
+        "'*/int8' --features KIND`), HOTA:",
+        "",
+        "| kind | " + " | ".join(c.name for c in cells) + " | mean |",
+        "|---|" + "---:|" * (len(cells) + 1),
+    ]
+    for kind in kinds:
+        result = accuracy_grid.score_grid(grid, accuracy_grid.Config(features=kind))
+        values = [result[c.name]["HOTA"] for c in cells]
+        lines.append(
+            f"| {kind} | "
+            + " | ".join(f"{v:.2f}" for v in values)
+            + f" | {accuracy_grid.mean_metric(result):.2f} |"
+        )
+    return [*lines, ""]
+
+
+def table(
+    results: dict[tuple[str, str, int], Quality],
+    scales: dict[tuple[str, str], float],
+    kinds: Sequence[str],
+) -> list[str]:
     lines = []
     for seq, _ in realvideo.VIDEOS:
         lines += [
@@ -204,6 +252,25 @@ def table(results: dict[tuple[str, str, int], Quality], kinds: Sequence[str]) ->
             cells.append(str(results[(seq, kind, GAPS[0])].probes))
             lines.append(f"| {kind} | " + " | ".join(cells) + " |")
         lines.append("")
+    lines += [
+        "Distances (cosine): the positives' 95th percentile and the nearby negatives' 5th at "
+        "each gap, and `scale`, the median distance between nearby detections of one frame "
+        "(all detections, no gt):",
+        "",
+        "| video | kind | "
+        + " | ".join(f"pos q95 k={k} | neg q05 k={k}" for k in GAPS)
+        + " | scale |",
+        "|---|---|" + "---:|" * (2 * len(GAPS) + 1),
+    ]
+    for seq, _ in realvideo.VIDEOS:
+        for kind in kinds:
+            cells = []
+            for k in GAPS:
+                q = results[(seq, kind, k)]
+                cells += [f"{q.pos_q95:.3f}", f"{q.neg_q05:.3f}"]
+            cells.append(f"{scales[(seq, kind)]:.3f}")
+            lines.append(f"| {seq} | {kind} | " + " | ".join(cells) + " |")
+    lines.append("")
     return lines
 
 
@@ -215,10 +282,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--kinds", default=",".join(KINDS), help="embedding kinds, comma-separated")
     ap.add_argument("--write", type=Path, help="also write the table to this markdown file")
     ap.add_argument("--time", type=int, default=0, metavar="N", help="time re-ID on N frames")
+    ap.add_argument("--track", action="store_true", help="track each kind on the video cells")
     ap.add_argument("--quiet", "-q", action="store_true")
     args = ap.parse_args(argv)
     kinds = args.kinds.split(",")
     costs: dict[str, dict[str, float]] = {}
+    scales: dict[tuple[str, str], float] = {}
     results: dict[tuple[str, str, int], Quality] = {}
     for seq, frames in realvideo.VIDEOS:
         video = realvideo.load_video(seq, frames, kinds, args.cache, SOURCE, args.quiet)
@@ -226,9 +295,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         for kind in kinds:
             for k in GAPS:
                 results[(seq, kind, k)] = quality(matched, video.embeddings[kind], k)
+            scales[(seq, kind)] = frame_scale(video, video.embeddings[kind])
         if args.time:
             costs[seq] = embed_cost(video, frames, kinds, args.time)
-    lines = table(results, kinds)
+    lines = table(results, scales, kinds)
+    if args.track:
+        lines += tracked(args.cache, kinds)
     if costs:
         crops = {
             seq: np.mean([len(d) for d in v.dets[: args.time]])
@@ -259,7 +331,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             "",
             f"    {COMMAND}"
             + ("" if args.kinds == ",".join(KINDS) else f" --kinds {args.kinds}")
-            + (f" --time {args.time}" if args.time else ""),
+            + (f" --time {args.time}" if args.time else "")
+            + (" --track" if args.track else ""),
             "",
             f"Detections of the float video cells matched to gt (IoU >= {MIN_IOU}); nearby: box "
             f"centres within {NEAR} box heights; gallery: the last {GALLERY} frames. "

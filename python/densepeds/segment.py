@@ -22,13 +22,8 @@ BLUR_SIGMA_FRACTION = 0.08  # of the crop height: enough to wipe out a neighbour
 
 # Appearance features from crops: "bbox" is the plain crop, "masked_pool" the plain crop with the
 # mask weighting the re-ID network's final pooling, the others repaint the background.
-FEATURES = ("segmented", "bbox", "masked_mean", "masked_blur", "masked_pool", "masked_crop_mean")
-FILLS = {
-    "segmented": "white",
-    "masked_mean": "mean",
-    "masked_blur": "blur",
-    "masked_crop_mean": "crop_mean",
-}
+FEATURES = ("segmented", "bbox", "masked_mean", "masked_blur", "masked_pool")
+FILLS = {"segmented": "white", "masked_mean": "mean", "masked_blur": "blur"}
 
 
 def box_region(box: npt.ArrayLike, width: int, height: int) -> tuple[int, int, int, int]:
@@ -82,8 +77,7 @@ def segmented_crop(
 ) -> Image:
     """Crop of ``box`` with pixels outside the mask replaced; inside, the original pixels.
 
-    fill: "white" (the method's segmented box), "mean" (ImageNet mean colour), "crop_mean" (the
-    crop's own mean colour) or "blur".
+    fill: "white" (the method's segmented box), "mean" (ImageNet mean colour) or "blur".
     """
     region = box_region(box, frame.shape[1], frame.shape[0])
     x0, y0, x1, y1 = region
@@ -96,8 +90,6 @@ def segmented_crop(
         crop[outside] = WHITE
     elif fill == "mean":
         crop[outside] = IMAGENET_MEAN_BGR
-    elif fill == "crop_mean":
-        crop[outside] = crop.reshape(-1, 3).mean(axis=0).round().astype(np.uint8)
     elif fill == "blur":
         sigma = max(1.0, BLUR_SIGMA_FRACTION * crop.shape[0])
         blurred = cv2.GaussianBlur(crop, (0, 0), sigma)
