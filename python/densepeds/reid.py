@@ -69,7 +69,13 @@ def guess_kind(layout: str, dtype: str) -> str:
 
 
 class ReID:
-    """Appearance embedder. ``embed(frame, dets, features)`` -> float32 [N, D], unit rows."""
+    """Appearance embedder. ``embed(frame, dets, features)`` -> float32 [N, D], unit rows.
+
+    ``flip``: each row is the mean of the crop's and its mirror's embeddings (twice the work);
+    ``context``: crops grow by this fraction of the box's width and height on each side. Both
+    are off by default: neither separated people better on both real videos
+    (``benchmarks/results/reid-quality.md``).
+    """
 
     def __init__(
         self,
