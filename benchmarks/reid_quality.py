@@ -20,12 +20,14 @@ person's box heights of theirs at ``t`` (the people a tracker can confuse them w
   frames ``t - GALLERY + 1 .. t`` and the distance to the nearest of them (as the tracker's
   gallery does).
 
-Lower ``wrong`` and higher ``AUC`` are better. Kinds are those of ``realvideo.kind_options``
-(a feature kind with optional ``+flip`` / ``+ctxF``). ``--time N`` also times each kind's
-``ReID.embed`` (the call ``densepeds run`` makes) on the first N frames of each video, the kinds
-interleaved frame by frame, and prints the machine's load. ``--track`` also tracks each kind on
-the four video cells (``accuracy_grid.py --cells '*/float' '*/int8' --features KIND``, package
-defaults) and gives their HOTA.
+Lower ``wrong`` and higher ``AUC`` are better. Where the gt has a visibility column (MOT20) the
+measures are also given with the probes cut by their visibility at ``t + k``. Kinds are those
+of ``realvideo.kind_options`` (a feature kind with optional ``+flip`` / ``+ctxF``).
+
+``--time N`` also times each kind's ``ReID.embed`` (the call ``densepeds run`` makes) on the
+first N frames of each video, the kinds interleaved frame by frame, and prints the machine's
+load. ``--track`` also tracks each kind on the four video cells (``accuracy_grid.py --cells
+'*/float' '*/int8' --features KIND``, package defaults) and gives their HOTA.
 """
 
 from __future__ import annotations
@@ -60,12 +62,14 @@ COMMAND = (
 
 @dataclass
 class Matched:
-    """Per frame: gt ids, box centres and heights, and row indices into the frame's detections."""
+    """Per frame: gt ids, box centres and heights, and row indices into the frame's detections;
+    the gt's visibility where it has one (MOT17/20 layout)."""
 
     ids: list[npt.NDArray[np.int64]]
     centres: list[npt.NDArray[np.float64]]
     heights: list[npt.NDArray[np.float64]]
     rows: list[npt.NDArray[np.intp]]
+    visibility: list[npt.NDArray[np.float64]] | None = None
 
 
 def match_gt(video: realvideo.CachedVideo) -> Matched:
@@ -75,9 +79,10 @@ def match_gt(video: realvideo.CachedVideo) -> Matched:
     from densepeds.motio import read_gt
 
     gt = read_gt(video.seq_dir / "gt" / "gt.txt")
-    if gt.shape[1] >= 9 and np.all(gt[:, 7] >= 0):  # MOT17/20 layout: flag, class, visibility
+    has_visibility = gt.shape[1] >= 9 and bool(np.all(gt[:, 7] >= 0))
+    if has_visibility:  # MOT17/20 layout: flag, class, visibility
         gt = gt[(gt[:, 6] == 1) & (gt[:, 7] == 1)]
-    out = Matched([], [], [], [])
+    out = Matched([], [], [], [], [] if has_visibility else None)
     for k, dets in enumerate(video.dets):
         g = gt[gt[:, 0] == video.first + k]
         boxes = np.c_[g[:, 2:4], g[:, 2:4] + g[:, 4:6]]
@@ -89,9 +94,11 @@ def match_gt(video: realvideo.CachedVideo) -> Matched:
             good = iou[r, c] >= MIN_IOU
             r, c = r[good], c[good]
             ids, rows = g[r, 1].astype(np.int64), np.asarray(c, np.intp)
-            boxes = boxes[r]
+            boxes, g = boxes[r], g[r]
         else:
-            boxes = np.zeros((0, 4))
+            boxes, g = np.zeros((0, 4)), g[:0]
+        if out.visibility is not None:
+            out.visibility.append(g[:, 8].astype(np.float64))
         out.ids.append(ids)
         out.rows.append(rows)
         out.centres.append((boxes[:, :2] + boxes[:, 2:]) / 2)
@@ -111,9 +118,14 @@ class Quality:
 
 
 def quality(
-    matched: Matched, emb: Sequence[npt.NDArray[np.float32]], gap: int, gallery: int = GALLERY
+    matched: Matched,
+    emb: Sequence[npt.NDArray[np.float32]],
+    gap: int,
+    gallery: int = GALLERY,
+    probe: Sequence[npt.NDArray[np.bool_]] | None = None,
 ) -> Quality:
-    """The measures of the module docstring for one video, kind and gap."""
+    """The measures of the module docstring for one video, kind and gap; ``probe`` (per frame,
+    one flag per matched person) keeps only the flagged people as probes."""
     frames = len(matched.ids)
     person = [e[r].astype(np.float64) for e, r in zip(emb, matched.rows, strict=True)]
     pos_all: list[float] = []
@@ -140,7 +152,7 @@ def quality(
                 gal[:, cols] = np.minimum(gal[:, cols], d)
         for i, p in enumerate(b_ids):
             j = where.get(int(p))
-            if j is None:
+            if j is None or (probe is not None and not probe[t + gap][i]):
                 continue
             others = np.flatnonzero(near[j])
             others = others[others != j]
@@ -229,6 +241,26 @@ def tracked(cache: Path, kinds: Sequence[str]) -> list[str]:
     return [*lines, ""]
 
 
+VISIBILITY_BINS = ((0.0, 0.5), (0.5, 1.0))
+
+
+def visibility_rows(
+    matched: Matched, emb: Sequence[npt.NDArray[np.float32]], kind: str
+) -> list[str]:
+    """Table rows of the measures with the probes cut by their gt visibility at ``t + k``."""
+    assert matched.visibility is not None
+    lines = []
+    for lo, hi in VISIBILITY_BINS:
+        flags = [(v >= lo) & ((v < hi) | (hi >= 1.0)) for v in matched.visibility]
+        cells = []
+        for k in GAPS:
+            q = quality(matched, emb, k, probe=flags)
+            cells += [f"{q.auc:.4f}", f"{100 * q.wrong:.2f}%", f"{100 * q.wrong_gallery:.2f}%"]
+        n = quality(matched, emb, GAPS[0], probe=flags).probes
+        lines.append(f"| {kind} | {lo}-{hi} | " + " | ".join(cells) + f" | {n} |")
+    return lines
+
+
 def table(
     results: dict[tuple[str, str, int], Quality],
     scales: dict[tuple[str, str], float],
@@ -288,6 +320,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     kinds = args.kinds.split(",")
     costs: dict[str, dict[str, float]] = {}
     scales: dict[tuple[str, str], float] = {}
+    by_visibility: list[str] = []
     results: dict[tuple[str, str, int], Quality] = {}
     for seq, frames in realvideo.VIDEOS:
         video = realvideo.load_video(seq, frames, kinds, args.cache, SOURCE, args.quiet)
@@ -296,9 +329,24 @@ def main(argv: Sequence[str] | None = None) -> int:
             for k in GAPS:
                 results[(seq, kind, k)] = quality(matched, video.embeddings[kind], k)
             scales[(seq, kind)] = frame_scale(video, video.embeddings[kind])
+            if matched.visibility is not None:
+                if not by_visibility:
+                    by_visibility += [
+                        f"{seq}, the probes cut by their gt visibility at `t + k`:",
+                        "",
+                        "| kind | visibility | "
+                        + " | ".join(
+                            f"AUC k={k} | wrong k={k} | wrong (gallery) k={k}" for k in GAPS
+                        )
+                        + " | probes k=1 |",
+                        "|---|---|" + "---:|" * (3 * len(GAPS) + 1),
+                    ]
+                by_visibility += visibility_rows(matched, video.embeddings[kind], kind)
         if args.time:
             costs[seq] = embed_cost(video, frames, kinds, args.time)
     lines = table(results, scales, kinds)
+    if by_visibility:
+        lines += [*by_visibility, ""]
     if args.track:
         lines += tracked(args.cache, kinds)
     if costs:
