@@ -212,7 +212,7 @@ def _pipeline(data: CellData, config: Config, tracker: Any = None) -> Any:
             k: v for k, v in config.cell_params(data.cell).items() if k in DETECTION_OPTIONS
         }
         return Pipeline(detector, features="none", tracker=tracker, **detection)
-    features = config.kind() if data.cell.full_pipeline else "none"
+    features = realvideo.kind_options(config.kind())[0] if data.cell.full_pipeline else "none"
     return Pipeline(
         detector, motion=config.motion, features=features, **config.cell_params(data.cell)
     )

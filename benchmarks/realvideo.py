@@ -187,6 +187,22 @@ def _load_dets(path: Path) -> list[Any]:
     return out
 
 
+# Embedding variants: a kind is a feature kind of densepeds.segment.FEATURES, optionally followed
+# by ``+flip`` (ReID(flip=True)) and/or ``+ctxF`` (ReID(context=F)), e.g. ``segmented+flip``.
+def kind_options(kind: str) -> tuple[str, dict[str, Any]]:
+    """(feature kind, ReID options) of a cached embedding kind."""
+    features, *extras = kind.split("+")
+    options: dict[str, Any] = {}
+    for extra in extras:
+        if extra == "flip":
+            options["flip"] = True
+        elif extra.startswith("ctx"):
+            options["context"] = float(extra[3:])
+        else:
+            raise ValueError(f"embedding kind {kind!r}: unknown variant {extra!r}")
+    return features, options
+
+
 def _frames(seq_dir: Path, frames: str) -> Iterator[tuple[int, npt.NDArray[np.uint8]]]:
     from densepeds.video import SequenceSource, parse_frame_range
 
@@ -206,6 +222,7 @@ def load_video(
 ) -> CachedVideo:
     """Detections and embeddings of ``kinds`` for a video, computed where not cached."""
     from densepeds.pipeline import Pipeline
+    from densepeds.reid import ReID
 
     seq_dir = SHARED / "data" / seq
     if not seq_dir.is_dir():
@@ -233,9 +250,10 @@ def load_video(
         )
         if not emb_file.is_file():
             t0 = time.perf_counter()
-            reid = helper.reid()
+            features, options = kind_options(kind)
+            reid = helper.reid() if not options else ReID(**options)
             rows = [
-                reid.embed(image, d, features=kind)
+                reid.embed(image, d, features=features)
                 for (_, image), d in zip(_frames(seq_dir, frames), dets, strict=True)
             ]
             tmp = emb_file.with_suffix(".tmp.npz")
@@ -262,8 +280,8 @@ def track_video(
     from densepeds.motio import write_tracks
     from densepeds.pipeline import Pipeline, track_rows
 
-    pipe = Pipeline("yoloseg", motion=motion, features=features, **params)
-    kind = pipe.features
+    pipe = Pipeline("yoloseg", motion=motion, features=kind_options(features)[0], **params)
+    kind = features if pipe.features != "none" else "none"
     rows: list[tuple[float, ...]] = []
     for k, dets in enumerate(video.dets):
         emb = None if kind == "none" else video.embeddings[kind][k]

@@ -243,3 +243,133 @@ def test_smaller_input_size_runs_the_same_network_on_smaller_crops() -> None:
     assert np.all(cos > 0.5) and np.all(cos < 0.9999)
     with pytest.raises(ModelError):
         ReID(model, threads=1, input_size=(0, 64))
+
+
+def test_flip_averaging_makes_a_mirrored_crop_give_the_same_embedding() -> None:
+    model = shared_path("models", "osnet_x0_25_msmt17.onnx")
+    rng = np.random.default_rng(4)
+    crops = [rng.integers(0, 256, (160, 70, 3), dtype=np.uint8) for _ in range(3)]
+    mirrored = [c[:, ::-1].copy() for c in crops]
+    plain = ReID(model, threads=1)
+    flip = ReID(model, threads=1, flip=True, batch_size=2)  # a batch boundary inside the crops
+    # Without flipping a random crop and its mirror embed differently ...
+    a, b = plain.embed_crops(crops), plain.embed_crops(mirrored)
+    assert (1 - np.sum(a * b, axis=1)).min() > 1e-3
+    # ... with it they give the same unit row: the mean of the two directions, renormalised.
+    fa, fb = flip.embed_crops(crops), flip.embed_crops(mirrored)
+    np.testing.assert_allclose(fa, fb, atol=1e-5)
+    np.testing.assert_allclose(np.linalg.norm(fa, axis=1), 1.0, rtol=1e-5)
+    expected = a + b
+    expected /= np.linalg.norm(expected, axis=1, keepdims=True)
+    np.testing.assert_allclose(fa, expected, atol=1e-5)
+    # Mask-weighted pooling mirrors the weights with the crop.
+    frame = rng.integers(0, 256, (200, 200, 3), np.uint8)
+    box = np.array([[20, 20, 90, 180]], float)
+    mask = np.zeros((160, 70), bool)
+    mask[:, :30] = True
+    dets = Detections(box, np.ones(1), [mask], box.astype(np.int32))
+    mirror_frame = frame[:, ::-1].copy()
+    mbox = np.array([[110, 20, 180, 180]], float)
+    mdets = Detections(mbox, np.ones(1), [mask[:, ::-1].copy()], mbox.astype(np.int32))
+    np.testing.assert_allclose(
+        flip.embed(frame, dets, "masked_pool"),
+        flip.embed(mirror_frame, mdets, "masked_pool"),
+        atol=1e-5,
+    )
+
+
+def test_context_margin_widens_the_crop_the_model_sees() -> None:
+    model = shared_path("models", "osnet_x0_25_msmt17.onnx")
+    rng = np.random.default_rng(5)
+    frame = rng.integers(0, 256, (300, 300, 3), np.uint8)
+    box = np.array([[100, 50, 160, 230]], float)  # 60 x 180
+    dets = Detections(box, np.ones(1))
+    wide = ReID(model, threads=1, context=0.1)
+    # The crop is the box grown by 10% of its width and height on each side.
+    np.testing.assert_allclose(
+        wide.embed(frame, dets, "bbox"),
+        wide.embed_crops([frame[32:248, 94:166]]),
+        atol=1e-6,
+    )
+    plain = ReID(model, threads=1)
+    assert (
+        1 - float(np.sum(plain.embed(frame, dets, "bbox") * wide.embed(frame, dets, "bbox"))) > 1e-3
+    )
+    with pytest.raises(ParameterError):
+        ReID(model, context=-0.1)
+
+
+def _brute_quality(ids, centres, heights, emb, gap, gallery, near):  # type: ignore[no-untyped-def]
+    """reid_quality.quality by plain loops over people and frames (the reference)."""
+    wins = ties = pairs = probes = wrong = wrong_gal = 0
+    for t in range(len(ids) - gap):
+        for i, p in enumerate(ids[t + gap]):
+            if p not in ids[t]:
+                continue
+            j = ids[t].index(p)
+            others = [
+                q
+                for m, q in enumerate(ids[t])
+                if q != p and np.hypot(*(centres[t][m] - centres[t][j])) <= near * heights[t][j]
+            ]
+            if not others:
+                continue
+            probes += 1
+            probe = emb[t + gap][i]
+
+            def dist(q: int, s: int, probe: np.ndarray = probe) -> float:
+                return 1.0 - float(probe @ emb[s][ids[s].index(q)])
+
+            def gal(q: int, t: int = t) -> float:
+                s0 = max(0, t - gallery + 1)
+                return min((dist(q, s) for s in range(s0, t + 1) if q in ids[s]), default=np.inf)
+
+            pos = dist(p, t)
+            for q in others:
+                pairs += 1
+                wins += dist(q, t) > pos
+                ties += dist(q, t) == pos
+            wrong += min(dist(q, t) for q in others) < pos
+            wrong_gal += min(gal(q) for q in others) < gal(p)
+    return (wins + ties / 2) / pairs, wrong / probes, wrong_gal / probes, probes, pairs
+
+
+def test_reid_quality_matches_brute_force() -> None:
+    import sys
+
+    from conftest import REPO
+
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    import reid_quality
+
+    rng = np.random.default_rng(6)
+    frames, people, dim = 25, 9, 8
+    base = rng.normal(size=(people, dim))
+    pos = rng.uniform(0, 100, (people, 2))
+    ids, centres, heights, emb, rows = [], [], [], [], []
+    for _ in range(frames):
+        present = sorted(rng.choice(people, size=int(rng.integers(3, people + 1)), replace=False))
+        pos += rng.normal(0, 3, pos.shape)
+        e = base[present] + rng.normal(0, 0.8, (len(present), dim))
+        e = (e / np.linalg.norm(e, axis=1, keepdims=True)).astype(np.float32)
+        order = rng.permutation(len(present))  # the matched rows, shuffled
+        ids.append([int(p) for p in present])
+        centres.append(pos[present].copy())
+        heights.append(rng.uniform(10, 30, len(present)))
+        emb.append(e)
+        rows.append(order.astype(np.intp))
+    matched = reid_quality.Matched([np.asarray(i, np.int64) for i in ids], centres, heights, rows)
+    dets_emb = []  # each frame's detections: the matched people plus an unmatched one
+    for r, e in zip(rows, emb, strict=True):
+        d = np.full((len(r) + 1, dim), 1 / np.sqrt(dim), np.float32)
+        d[r] = e
+        dets_emb.append(d)
+    for gap in (1, 4):
+        got = reid_quality.quality(matched, dets_emb, gap, gallery=3)
+        auc, wrong, wrong_gal, probes, pairs = _brute_quality(
+            ids, centres, heights, [e.astype(np.float64) for e in emb], gap, 3, reid_quality.NEAR
+        )
+        assert (got.probes, got.pairs) == (probes, pairs) and probes > 20
+        assert got.auc == pytest.approx(auc, abs=1e-12)
+        assert got.wrong == pytest.approx(wrong) and got.wrong_gallery == pytest.approx(wrong_gal)
+        assert 0 < wrong < 1 and 0 < auc < 1

@@ -69,7 +69,13 @@ def guess_kind(layout: str, dtype: str) -> str:
 
 
 class ReID:
-    """Appearance embedder. ``embed(frame, dets, features)`` -> float32 [N, D], unit rows."""
+    """Appearance embedder. ``embed(frame, dets, features)`` -> float32 [N, D], unit rows.
+
+    ``flip``: each row is the mean of the crop's and its mirror's embeddings (twice the work);
+    ``context``: crops grow by this fraction of the box's width and height on each side. Both
+    are off by default: neither raised the tracked HOTA on the real videos
+    (``benchmarks/results/reid-quality.md``).
+    """
 
     def __init__(
         self,
@@ -80,11 +86,17 @@ class ReID:
         batch_size: int = 32,
         reuse: bool | ReusePolicy = False,
         input_size: tuple[int, int] | None = None,
+        flip: bool = False,
+        context: float = 0.0,
     ) -> None:
         if batch_size < 1:
             raise ParameterError(f"batch_size must be >= 1, got {batch_size}")
         if kind != "auto" and kind not in MODEL_KINDS:
             raise ParameterError(f"kind must be 'auto' or one of {sorted(MODEL_KINDS)}, got {kind}")
+        if not 0.0 <= context <= 1.0:
+            raise ParameterError(f"context must be in [0, 1], got {context}")
+        self.flip = flip
+        self.context = context
         path = find_model(DEFAULT_MODEL) if model is None else find_model(str(model))
         self.path: Path = path
         self.batch_size = batch_size
@@ -204,6 +216,8 @@ class ReID:
         """BGR crops of any size -> float32 [N, D] with unit L2 rows.
 
         ``person`` (one mask per crop) switches to mask-weighted pooling of the final features.
+        With ``flip`` each row is the mean of the crop's and its mirror image's embeddings (the
+        two run in one batch), so a crop and its mirror give the same row.
         """
         out = np.zeros((len(crops), getattr(self, "dim", 0)), np.float32)
         for start in range(0, len(crops), self.batch_size):
@@ -216,7 +230,14 @@ class ReID:
             weights = None
             if person is not None:
                 weights = self._pool_weights(person[start : start + len(chunk)])
-            out[start : start + len(chunk)] = self._run(batch, weights)
+            if self.flip:
+                both = np.concatenate([batch, batch[:, :, ::-1]])
+                pair = None if weights is None else np.concatenate([weights, weights[..., ::-1]])
+                rows = self._run(both, pair)
+                half = len(chunk)
+                out[start : start + half] = _unit(rows[:half]) + _unit(rows[half:])
+            else:
+                out[start : start + len(chunk)] = self._run(batch, weights)
         bad = ~np.isfinite(out).all(axis=1)
         if bad.any():
             raise ModelError(
@@ -277,6 +298,12 @@ class ReID:
     def _embed_all(
         self, frame: npt.NDArray[np.uint8], dets: Detections, features: str
     ) -> npt.NDArray[np.float32]:
+        if self.context > 0:
+            boxes = dets.boxes.astype(np.float64)
+            pad_x = self.context * (boxes[:, 2] - boxes[:, 0])
+            pad_y = self.context * (boxes[:, 3] - boxes[:, 1])
+            boxes += np.c_[-pad_x, -pad_y, pad_x, pad_y]
+            dets = Detections(boxes.astype(np.float32), dets.scores, dets.masks, dets.mask_boxes)
         if self.kind.match_aspect:
             boxes = dets.boxes.astype(np.float64)
             centre = (boxes[:, 0] + boxes[:, 2]) / 2
@@ -287,6 +314,11 @@ class ReID:
         if features == "masked_pool":  # plain crops, the masks weight the final pooling
             return self.embed_crops(crops, person_masks(frame, dets))
         return self.embed_crops(crops)
+
+
+def _unit(rows: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+    norms = np.linalg.norm(rows, axis=1, keepdims=True)
+    return (rows / np.maximum(norms, 1e-12)).astype(np.float32)
 
 
 @dataclass(frozen=True)

@@ -23,6 +23,7 @@ BLUR_SIGMA_FRACTION = 0.08  # of the crop height: enough to wipe out a neighbour
 # Appearance features from crops: "bbox" is the plain crop, "masked_pool" the plain crop with the
 # mask weighting the re-ID network's final pooling, the others repaint the background.
 FEATURES = ("segmented", "bbox", "masked_mean", "masked_blur", "masked_pool")
+FILLS = {"segmented": "white", "masked_mean": "mean", "masked_blur": "blur"}
 
 
 def box_region(box: npt.ArrayLike, width: int, height: int) -> tuple[int, int, int, int]:
@@ -94,7 +95,7 @@ def segmented_crop(
         blurred = cv2.GaussianBlur(crop, (0, 0), sigma)
         crop[outside] = blurred[outside]
     else:
-        raise ParameterError(f"fill must be 'white', 'mean' or 'blur', got {fill!r}")
+        raise ParameterError(f"fill must be one of {sorted(set(FILLS.values()))}, got {fill!r}")
     return crop
 
 
@@ -104,7 +105,7 @@ def crops_for(frame: Image, dets: Detections, features: str = "segmented") -> li
         raise ParameterError(f"features must be one of {FEATURES}, got {features!r}")
     if features in ("bbox", "masked_pool"):  # masked_pool weights features, not pixels
         return [bbox_crop(frame, b) for b in dets.boxes]
-    fill = {"segmented": "white", "masked_mean": "mean", "masked_blur": "blur"}[features]
+    fill = FILLS[features]
     masks = dets.masks
     mboxes = dets.mask_boxes
     return [
