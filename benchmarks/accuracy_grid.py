@@ -75,7 +75,8 @@ REFERENCE_GRID = "reference-grid"
 # Sources left out of the grid unless a --cells pattern names them (the fast settings): ``ortq``,
 # the int8 copy made by `densepeds models quantize` (found in $DENSEPEDS_MODEL_DIR), on the default
 # tiles; ``grid`` the float copy and ``ortq-grid`` the int8 copy on the reference's fixed grid;
-# ``scanK`` (``ortq-scanK``) the float (int8) copy on the default tiles with ``full_scan_every=K``.
+# ``scanK`` (``ortq-scanK``) the float (int8) copy on the default tiles with ``full_scan_every=K``,
+# ``grid-scanK`` (``ortq-grid-scanK``) on the reference's grid with ``full_scan_every=K``.
 # All keep the package's tracker defaults and the yoloseg preset.
 OPTIONAL_SOURCES: dict[str, dict[str, Any]] = {
     "ortq": {"quantized": True},
@@ -84,6 +85,8 @@ OPTIONAL_SOURCES: dict[str, dict[str, Any]] = {
     "scan2": {"quantized": False, "full_scan_every": 2},
     "scan4": {"quantized": False, "full_scan_every": 4},
     "ortq-scan4": {"quantized": True, "full_scan_every": 4},
+    "grid-scan4": {"quantized": False, "tiles": REFERENCE_GRID, "full_scan_every": 4},
+    "ortq-grid-scan4": {"quantized": True, "tiles": REFERENCE_GRID, "full_scan_every": 4},
 }
 FEATURE_KINDS = ("segmented", "bbox", "masked_pool")
 SHOWN = ("HOTA", "IDF1", "MOTA", "IDSW", "FP", "FN")
