@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import onnx
 import pytest
-from conftest import shared_path
+from conftest import REPO, shared_path
 from densepeds.boxes import intersections, iou_matrix
 from densepeds.detect import make_detector
 from densepeds.detect.onnxutil import dequantized, load_model, make_session, with_dynamic_batch
@@ -783,3 +783,23 @@ def test_one_full_scan_every_frame_leaves_the_tracks_unchanged() -> None:
         out.append(np.concatenate(rows))
     assert len(out[0]) > 20
     np.testing.assert_array_equal(out[0], out[1])
+
+
+def test_a_skipping_grid_has_a_cache_key_of_its_own() -> None:
+    """benchmarks/realvideo.py keys cached detections by the detector's settings: a fixed grid
+    that skips tiles is its own entry; one that does not keeps the plain grid's key."""
+    import sys
+
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    import realvideo
+
+    shared_path("models", YOLO)
+    key = realvideo._cache_key
+    plain = key("PETS09-S2L1-dev", "1:397", {"tiles": "2x2", "quantized": False})
+    same = {"tiles": "2x2", "quantized": False, "full_scan_every": 1}
+    assert key("PETS09-S2L1-dev", "1:397", same) == plain
+    for every in (2, 4):
+        skip = {"tiles": "2x2", "quantized": False, "full_scan_every": every}
+        assert key("PETS09-S2L1-dev", "1:397", skip) != plain
+    two, four = ({"tiles": "2x2", "quantized": False, "full_scan_every": k} for k in (2, 4))
+    assert key("PETS09-S2L1-dev", "1:397", two) != key("PETS09-S2L1-dev", "1:397", four)
