@@ -26,7 +26,8 @@ TilesSpec = str | int | tuple[int, int] | None
 
 OVERLAP = 0.2  # fraction of a tile shared with each neighbour
 CUT_MARGIN = 3.0  # px (frame scale): a box this close to an interior tile edge is "cut"
-# The detector settings read only by the people-following rule (the yoloseg "auto" tiles).
+# The detector settings of the people-following rule (the yoloseg "auto" tiles); a fixed grid
+# reads full_scan_every too (SkipSchedule), and only where it is not 1.
 PEOPLE_SETTINGS = ("person_share", "max_tiles", "max_scale", "full_scan_every")
 # The people's tiles cost at most this many times the views of the frame's fixed grid
 # (auto_grid): on small frames the people's share would otherwise ask for many magnified tiles.
