@@ -75,7 +75,8 @@ REFERENCE_GRID = "reference-grid"
 # Sources left out of the grid unless a --cells pattern names them (the fast settings): ``ortq``,
 # the int8 copy made by `densepeds models quantize` (found in $DENSEPEDS_MODEL_DIR), on the default
 # tiles; ``grid`` the float copy and ``ortq-grid`` the int8 copy on the reference's fixed grid;
-# ``scanK`` (``ortq-scanK``) the float (int8) copy on the default tiles with ``full_scan_every=K``.
+# ``scanK`` (``ortq-scanK``) the float (int8) copy on the default tiles with ``full_scan_every=K``,
+# ``grid-scanK`` (``ortq-grid-scanK``) on the reference's grid with ``full_scan_every=K``.
 # All keep the package's tracker defaults and the yoloseg preset.
 OPTIONAL_SOURCES: dict[str, dict[str, Any]] = {
     "ortq": {"quantized": True},
@@ -84,6 +85,8 @@ OPTIONAL_SOURCES: dict[str, dict[str, Any]] = {
     "scan2": {"quantized": False, "full_scan_every": 2},
     "scan4": {"quantized": False, "full_scan_every": 4},
     "ortq-scan4": {"quantized": True, "full_scan_every": 4},
+    "grid-scan4": {"quantized": False, "tiles": REFERENCE_GRID, "full_scan_every": 4},
+    "ortq-grid-scan4": {"quantized": True, "tiles": REFERENCE_GRID, "full_scan_every": 4},
 }
 FEATURE_KINDS = ("segmented", "bbox", "masked_pool")
 SHOWN = ("HOTA", "IDF1", "MOTA", "IDSW", "FP", "FN")
@@ -305,6 +308,10 @@ FAST_SOURCES = {
     "grid": "float copy on the reference's grid",
     "ortq": "int8 copy, tiles that follow the people",
     "ortq-grid": "int8 copy on the reference's grid",
+    "scan4": "float copy, tiles that follow the people, a full scan every 4th frame",
+    "ortq-scan4": "int8 copy, tiles that follow the people, a full scan every 4th frame",
+    "grid-scan4": "float copy on the reference's grid, a full scan every 4th frame",
+    "ortq-grid-scan4": "int8 copy on the reference's grid, a full scan every 4th frame",
 }
 FAST_COMMAND = (
     "DENSEPEDS_MODEL_DIR=out/models:../shared/models OPENBLAS_NUM_THREADS=1 \\\n"
@@ -333,7 +340,7 @@ def fast_table(cache: Path, quiet: bool = False) -> list[str]:
     metrics = ("HOTA", "DetA", "AssA", "IDF1")
     head = " | ".join(f"{seq.split('-dev')[0]} {m}" for seq in VIDEOS for m in metrics)
     lines = [
-        "# The fast settings' accuracy: grid tiles and the int8 copy",
+        "# The fast settings' accuracy: grid tiles, the int8 copy and skipped tiles",
         "",
         "Written by this command (do not edit; rerun it):",
         "",
@@ -348,7 +355,10 @@ def fast_table(cache: Path, quiet: bool = False) -> list[str]:
         "(`benchmarks/results/int8.md`); the reference's grid is "
         "`densepeds.detect.tiling.auto_grid` for the frame size ("
         + ", ".join(f"{c.seq} {c.detector_options['tiles']}" for c in cells if c.source == "grid")
-        + "). These cells are not part of the 15-cell dev grid or its mean "
+        + "). `a full scan every 4th frame` is the detector's `full_scan_every=4`: all the "
+        "tiles every 4th frame, between only those that show somebody found in the last 4 "
+        "frames whole (`densepeds.detect.tiling`). These cells are not part of the 15-cell "
+        "dev grid or its mean "
         f"(`accuracy.md`). onnxruntime {_ort_version()}. Speed of the same settings: `speed.md`.",
         "",
         f"| setting | {head} |",
@@ -364,7 +374,29 @@ def fast_table(cache: Path, quiet: bool = False) -> list[str]:
             for seq in VIDEOS
         )
         lines.append(f"- {what}: {deltas}")
+    lines += ["", "Change against the same setting run on every tile every frame (HOTA):", ""]
+    for src, every in _every_frame_sources(list(FAST_SOURCES)).items():
+        deltas = ", ".join(
+            f"{seq} {result[f'{seq}/{src}']['HOTA'] - result[f'{seq}/{every}']['HOTA']:+.2f}"
+            for seq in VIDEOS
+        )
+        lines.append(f"- {FAST_SOURCES[src]}: {deltas}")
     return lines
+
+
+def _every_frame_sources(sources: Sequence[str]) -> dict[str, str]:
+    """For each source that skips tiles (``full_scan_every`` > 1), the source among ``sources``
+    with the same options but a full scan every frame."""
+    options = {**DETECTOR_OPTIONS, **OPTIONAL_SOURCES}
+    out = {}
+    for src in sources:
+        opts = dict(options[src])
+        if opts.pop("full_scan_every", 1) == 1:
+            continue
+        for other in sources:
+            if other != src and options[other] == opts:
+                out[src] = other
+    return out
 
 
 def parse_value(text: str) -> Any:

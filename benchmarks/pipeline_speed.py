@@ -17,7 +17,9 @@ decoding and masks. ``--reuse`` adds a third process: `densepeds run` with re-ID
 on (``ReID(reuse=True)``, which the pipeline does not do by default; see
 densepeds.reid.ReusePolicy). ``--int8 FILE`` adds `densepeds run --detector-model FILE`, the
 detector's int8 copy made by `densepeds models quantize` (densepeds.quantize), on the default
-tiles and on the grid. ``--memory``
+tiles and on the grid; ``--skip K`` adds the int8 copy on the grid with a full scan every K-th
+frame only (YoloSegDetector ``full_scan_every``). ``--only NAME...`` times only those pipelines
+beside the reference. ``--memory``
 appends `benchmarks/memory.py`'s table; ``--write``
 writes the whole report as Markdown. Figures only: nothing is asserted.
 """
@@ -43,6 +45,7 @@ SHARED = Path(os.environ.get("DENSEPEDS_SHARED", REPO.parent / "shared"))
 os.environ.setdefault("DENSEPEDS_MODEL_DIR", str(SHARED / "models"))
 STAGE_RE = re.compile(r"([a-z]+) ([0-9.]+)")
 REUSE_CHILD = "--child-run-with-reuse"
+SKIP_CHILD = "--child-run-with-full-scan-every"
 DETECTOR_INPUT = 320  # the shared segmenter's input size, which sets the automatic tiles
 
 
@@ -59,6 +62,24 @@ def _run_with_reuse(argv: list[str]) -> int:
 
     reid.ReID.__init__ = init  # type: ignore[method-assign]
     return cli_main(["run", *argv])
+
+
+def _run_with_skip(argv: list[str]) -> int:
+    """`densepeds run ARGV[1:]` with the yoloseg detector's ``full_scan_every=ARGV[0]`` (a full
+    scan every K-th frame, between only the tiles showing somebody; `densepeds run` has no
+    option for it)."""
+    from densepeds.cli import main as cli_main
+    from densepeds.detect import yoloseg
+
+    every = int(argv[0])
+    plain_init = yoloseg.YoloSegDetector.__init__
+
+    def init(self: yoloseg.YoloSegDetector, *args: object, **kwargs: object) -> None:
+        kwargs.setdefault("full_scan_every", every)
+        plain_init(self, *args, **kwargs)  # type: ignore[arg-type]
+
+    yoloseg.YoloSegDetector.__init__ = init  # type: ignore[method-assign]
+    return cli_main(["run", *argv[1:]])
 
 
 def _cpu_prefix(threads: int) -> list[str]:
@@ -181,6 +202,10 @@ def compare(
         cmds["ours+int8"] = [*run, *int8]
         grid_int8 = ["--detector-model", str(args.int8.resolve()), "--tiles", tiles]
         cmds["ours+int8 on the grid"] = [*run, *grid_int8, "--out", f"{tmp}/int8-grid.txt"]
+        if args.skip:
+            child = [*nice, *pin, sys.executable, __file__, SKIP_CHILD, str(args.skip)]
+            child += [str(seq_dir), "--detector", "yoloseg", "--frames", frames, "-q"]
+            cmds[skip_name(args.skip)] = [*child, *grid_int8, "--out", f"{tmp}/int8-skip.txt"]
     # `densepeds run` ends with "... N frames/s for the whole pipeline; timed: ... ms/frame)".
     markers = {name: "frames/s" for name in cmds} | {"reference": "reference:"}
     runs: dict[str, list[Run]] = {name: [] for name in names}
@@ -244,6 +269,10 @@ def compare(
     return lines
 
 
+def skip_name(every: int) -> str:
+    return f"ours+int8 on the grid, full scan every {every}"
+
+
 def _cpu_name() -> str:
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
@@ -284,7 +313,20 @@ def main() -> int:
         metavar="FILE",
         help="also time ours with this int8 copy of the detector (`densepeds models quantize`)",
     )
+    ap.add_argument(
+        "--skip",
+        type=int,
+        metavar="K",
+        help="with --int8: also time it on the grid with a full scan every K-th frame only "
+        "(between, the tiles showing somebody; YoloSegDetector full_scan_every)",
+    )
     ap.add_argument("--memory", action="store_true", help="also run benchmarks/memory.py")
+    ap.add_argument(
+        "--only",
+        nargs="+",
+        metavar="NAME",
+        help="time only these pipelines (names as printed) beside the reference",
+    )
     ap.add_argument("--write", type=Path, help="write the report to this file")
     args = ap.parse_args()
     seqs, ranges = args.seq.split(","), args.frames.split(",")
@@ -292,6 +334,12 @@ def main() -> int:
         raise SystemExit(f"give one frame range per sequence: {len(seqs)} vs {len(ranges)}")
     names = ["reference", "ours", "ours on the grid", *(["ours+reuse"] if args.reuse else [])]
     names += ["ours+int8", "ours+int8 on the grid"] if args.int8 is not None else []
+    if args.skip:
+        if args.int8 is None or args.skip < 1:
+            raise SystemExit("--skip K needs --int8 FILE and K >= 1")
+        names.append(skip_name(args.skip))
+    if args.only:
+        names = ["reference", *(n for n in names[1:] if n in args.only)]
     command = "OPENBLAS_NUM_THREADS=1 python benchmarks/pipeline_speed.py " + " ".join(sys.argv[1:])
     lines = [
         "# Speed: `densepeds run` against the reference pipeline",
@@ -323,4 +371,6 @@ def main() -> int:
 if __name__ == "__main__":
     if len(sys.argv) > 1 and sys.argv[1] == REUSE_CHILD:
         sys.exit(_run_with_reuse(sys.argv[2:]))
+    if len(sys.argv) > 1 and sys.argv[1] == SKIP_CHILD:
+        sys.exit(_run_with_skip(sys.argv[2:]))
     sys.exit(main())

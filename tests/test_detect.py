@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import onnx
 import pytest
-from conftest import shared_path
+from conftest import REPO, shared_path
 from densepeds.boxes import intersections, iou_matrix
 from densepeds.detect import make_detector
 from densepeds.detect.onnxutil import dequantized, load_model, make_session, with_dynamic_batch
@@ -17,6 +17,7 @@ from densepeds.detect.tiling import (
     GRID_MULTIPLE,
     PeopleTiles,
     Perspective,
+    SkipSchedule,
     Tile,
     auto_grid,
     fit_perspective,
@@ -667,3 +668,138 @@ def test_full_scans_on_a_real_crowd_skip_views_but_keep_the_people() -> None:
     assert scans[first:] == [(i % 4 == 3) for i in range(len(scans) - first)]
     assert views["skip"] < views["full"]
     assert found["skip"] >= 0.95 * found["full"] and total > 100
+
+
+# --- a fixed grid that skips empty tiles between full scans -----------------------------------
+
+
+def test_fixed_grid_skips_empty_tiles_between_full_scans() -> None:
+    grid = make_tiles(768, 576, 2, 2)
+    schedule = SkipSchedule(full_scan_every=3)
+    corner = np.array([[40.0, 40.0, 80.0, 140.0]])  # whole in the top-left tile only
+    holders = [k for k, t in enumerate(grid) if _whole_in(corner[0], t)]
+    assert holders == [0]
+    runs = []
+    for frame in range(7):
+        tiles = schedule.tiles(grid)
+        runs.append((schedule.last_full, [grid.index(t) for t in tiles]))
+        schedule.observe(corner if frame < 4 else np.zeros((0, 4)))
+    # Every third frame all four tiles; between, only the tile that shows the person whole, and
+    # none (the whole frame in one view) once nobody was seen for a full period.
+    full = [0, 1, 2, 3]
+    assert runs == [
+        (True, full),
+        (False, [0]),
+        (False, [0]),
+        (True, full),
+        (False, [0]),
+        (False, [0]),  # the person of frame 3 (the last full scan) is still recent
+        (True, full),
+    ]
+    schedule.observe(np.zeros((0, 4)))
+    assert schedule.tiles(grid) == [] and not schedule.last_full
+    # Another layout (another frame size): a full scan at once.
+    other = make_tiles(960, 540, 3, 2)
+    assert schedule.tiles(other) == other and schedule.last_full
+    # full_scan_every=1: every frame all tiles, whatever was seen.
+    always = SkipSchedule(1)
+    for _ in range(3):
+        assert always.tiles(grid) == grid and always.last_full
+        always.observe(corner)
+    with pytest.raises(ParameterError):
+        SkipSchedule(0)
+
+
+def test_yoloseg_fixed_grid_follows_its_schedule(tmp_path: Path) -> None:
+    det = make_detector("yoloseg", tiny_yoloseg(tmp_path / "y.onnx"), threads=1, tiles="2x2")
+    skip = make_detector(
+        "yoloseg", tiny_yoloseg(tmp_path / "y.onnx"), threads=1, tiles="2x2", full_scan_every=2
+    )
+    assert isinstance(det, YoloSegDetector) and isinstance(skip, YoloSegDetector)
+    frame = np.zeros((128, 128, 3), np.uint8)
+    # The tiny model finds a person in every view: every tile stays occupied, the same boxes.
+    for _ in range(3):
+        a, b = det(frame), skip(frame)
+        assert det.last_views == skip.last_views == 4
+        np.testing.assert_array_equal(a.boxes, b.boxes)
+    # Nobody seen for a period: the frame between full scans is seen whole, in one view.
+    skip.reset()
+    skip(frame)
+    skip.grid_schedule.observe(np.zeros((0, 4)))
+    skip.grid_schedule.observe(np.zeros((0, 4)))
+    assert len(skip.views(128, 128)) == 1 and not skip.grid_schedule.last_full
+
+
+def pets09_gt_boxes(gt: np.ndarray, frame: int) -> np.ndarray:
+    sel = gt[gt[:, 0] == frame]
+    return np.c_[sel[:, 2:4], sel[:, 2:4] + sel[:, 4:6]]
+
+
+def test_fixed_grid_skipping_on_a_real_video_keeps_the_people() -> None:
+    """PETS09-S2L1 frames 41-64 on the reference's 2x2 grid with a full scan every 4th frame:
+    the frames between run fewer views and find about as many people as every tile would."""
+    gt = read_gt(shared_path("data", "PETS09-S2L1-dev", "gt", "gt.txt"))
+    frames = video_frames(shared_path("data", "PETS09-S2L1-dev", "vtest.avi"), list(range(41, 65)))
+    model = shared_path("models", YOLO)
+    full = make_detector("yoloseg", model, threads=2, tiles="2x2")
+    skip = make_detector("yoloseg", model, threads=2, tiles="2x2", full_scan_every=4)
+    assert isinstance(full, YoloSegDetector) and isinstance(skip, YoloSegDetector)
+    found = {"full": 0, "skip": 0}
+    views = {"full": 0, "skip": 0}
+    scans = []
+    total = 0
+    for k, frame in frames.items():
+        truth = pets09_gt_boxes(gt, k)
+        total += len(truth)
+        for name, det in (("full", full), ("skip", skip)):
+            found[name] += recall(det(frame), truth)[0]
+            views[name] += det.last_views
+        scans.append(skip.grid_schedule.last_full)
+    print(f"PETS09 frames 41-64, 2x2: found {found} of {total}, views {views}")
+    assert scans == [i % 4 == 0 for i in range(24)]
+    assert views["full"] == 4 * 24 and views["skip"] < views["full"]
+    assert found["skip"] >= 0.95 * found["full"] and total > 100
+
+
+def test_one_full_scan_every_frame_leaves_the_tracks_unchanged() -> None:
+    """A fixed grid with full_scan_every=1 against the same detector with its schedule bypassed
+    (every tile of the grid, by construction): the same tracks on PETS09-S2L1 frames 1-8."""
+    from densepeds.pipeline import Pipeline
+
+    frames = video_frames(shared_path("data", "PETS09-S2L1-dev", "vtest.avi"), list(range(1, 9)))
+    model = shared_path("models", YOLO)
+    out = []
+    for bypass in (False, True):
+        det = make_detector("yoloseg", model, threads=2, tiles="2x2", full_scan_every=1)
+        assert isinstance(det, YoloSegDetector)
+        if bypass:
+            det.grid_schedule.tiles = lambda layout: layout  # type: ignore[method-assign]
+        pipe = Pipeline(det, features="none")
+        rows = []
+        for k, frame in frames.items():
+            tr = pipe.step(frame)
+            assert det.last_views == 4
+            rows.append(np.c_[np.full(len(tr.ids), k), tr.ids, tr.boxes])
+        out.append(np.concatenate(rows))
+    assert len(out[0]) > 20
+    np.testing.assert_array_equal(out[0], out[1])
+
+
+def test_a_skipping_grid_has_a_cache_key_of_its_own() -> None:
+    """benchmarks/realvideo.py keys cached detections by the detector's settings: a fixed grid
+    that skips tiles is its own entry; one that does not keeps the plain grid's key."""
+    import sys
+
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    import realvideo
+
+    shared_path("models", YOLO)
+    key = realvideo._cache_key
+    plain = key("PETS09-S2L1-dev", "1:397", {"tiles": "2x2", "quantized": False})
+    same = {"tiles": "2x2", "quantized": False, "full_scan_every": 1}
+    assert key("PETS09-S2L1-dev", "1:397", same) == plain
+    for every in (2, 4):
+        skip = {"tiles": "2x2", "quantized": False, "full_scan_every": every}
+        assert key("PETS09-S2L1-dev", "1:397", skip) != plain
+    two, four = ({"tiles": "2x2", "quantized": False, "full_scan_every": k} for k in (2, 4))
+    assert key("PETS09-S2L1-dev", "1:397", two) != key("PETS09-S2L1-dev", "1:397", four)

@@ -26,7 +26,8 @@ TilesSpec = str | int | tuple[int, int] | None
 
 OVERLAP = 0.2  # fraction of a tile shared with each neighbour
 CUT_MARGIN = 3.0  # px (frame scale): a box this close to an interior tile edge is "cut"
-# The detector settings read only by the people-following rule (the yoloseg "auto" tiles).
+# The detector settings of the people-following rule (the yoloseg "auto" tiles); a fixed grid
+# reads full_scan_every too (SkipSchedule), and only where it is not 1.
 PEOPLE_SETTINGS = ("person_share", "max_tiles", "max_scale", "full_scan_every")
 # The people's tiles cost at most this many times the views of the frame's fixed grid
 # (auto_grid): on small frames the people's share would otherwise ask for many magnified tiles.
@@ -300,6 +301,49 @@ def occupied_tiles(tiles: list[Tile], people: FloatArray, margin: float) -> list
         inter = intersections(boxes[nobody], edges)
         shows[np.flatnonzero(nobody), np.argmax(inter, axis=1)] = True
     return np.flatnonzero(shows.any(axis=0)).tolist()
+
+
+class SkipSchedule:
+    """Which tiles of a fixed layout run each frame: all of them every ``full_scan_every``-th
+    frame (a full scan, the first frame included), and on the frames between only those that
+    show whole somebody detected in the last ``full_scan_every`` frames, the last full scan's
+    included (``occupied_tiles``, people grown by ``margin`` of their height; no tile, so the
+    whole frame in one view, when nobody was). ``full_scan_every=1``: every frame a full scan.
+    ``last_full`` says whether the last ``tiles`` call was one; ``observe`` feeds a frame's
+    detections (a frame of another size, or another layout, starts with a full scan).
+    """
+
+    def __init__(self, full_scan_every: int, margin: float = 0.1) -> None:
+        if full_scan_every < 1:
+            raise ParameterError(f"full_scan_every must be >= 1, got {full_scan_every}")
+        self.full_scan_every = full_scan_every
+        self.margin = margin
+        self._recent: list[FloatArray] = []
+        self._layout: list[Tile] | None = None
+        self._since_full = 0
+        self.last_full = True
+
+    def tiles(self, layout: list[Tile]) -> list[Tile]:
+        """The tiles of ``layout`` to run on the next frame."""
+        if layout != self._layout or self._since_full + 1 >= self.full_scan_every:
+            self._layout = layout
+            self._since_full = 0
+            self.last_full = True
+            return layout
+        self._since_full += 1
+        self.last_full = False
+        people = np.concatenate(self._recent) if self._recent else np.zeros((0, 4))
+        return [layout[k] for k in occupied_tiles(layout, people, self.margin)]
+
+    def observe(self, boxes: FloatArray) -> None:
+        self._recent.append(np.asarray(boxes, np.float64).reshape(-1, 4))
+        del self._recent[: -self.full_scan_every]
+
+    def reset(self) -> None:
+        self._recent.clear()
+        self._layout = None
+        self._since_full = 0
+        self.last_full = True
 
 
 class PeopleTiles:

@@ -21,6 +21,7 @@ import numpy.typing as npt
 from densepeds.detect import onnxutil
 from densepeds.detect.tiling import (
     PeopleTiles,
+    SkipSchedule,
     Tile,
     TilesSpec,
     cut_flags,
@@ -98,7 +99,8 @@ class YoloSegDetector:
     frames whole (``tiling.occupied_tiles``; the whole frame in one view when nobody was
     found), so that the people who enter or were missed are looked for at least every k
     frames: fewer views at equal detector recall, but the tracks change (see
-    benchmarks/results/detector-recall.md).
+    benchmarks/results/detector-recall.md). A fixed grid skips the same way
+    (``tiling.SkipSchedule``): all its tiles every k-th frame, between only the occupied ones.
     ``benchmarks/detector_recall.py`` measures recall and views per choice.
     """
 
@@ -145,6 +147,7 @@ class YoloSegDetector:
         self.people_tiles = PeopleTiles(
             max(self.input_w, self.input_h), person_share, max_tiles, max_scale, full_scan_every
         )
+        self.grid_schedule = SkipSchedule(full_scan_every)  # a fixed grid's tiles per frame
 
     # --- model contract -------------------------------------------------------------------
     def _read_contract(self) -> None:
@@ -224,7 +227,8 @@ class YoloSegDetector:
             tiles = self.people_tiles.tiles(width, height)
         else:
             cols, rows = parse_grid(self.tiles, width, height, max(self.input_w, self.input_h))
-            tiles = make_tiles(width, height, cols, rows) if cols * rows > 1 else []
+            grid = make_tiles(width, height, cols, rows) if cols * rows > 1 else []
+            tiles = self.grid_schedule.tiles(grid)
         regions = [(t, True) for t in tiles]
         if not tiles or self.full_frame:
             regions.append((whole, False))
@@ -248,6 +252,7 @@ class YoloSegDetector:
     def reset(self) -> None:
         """Forget the people seen (another video starts): its first frames get the fixed grid."""
         self.people_tiles.reset()
+        self.grid_schedule.reset()
 
     def __call__(self, frame: npt.NDArray[np.uint8]) -> Detections:
         check_frame(frame)
@@ -262,6 +267,8 @@ class YoloSegDetector:
         found = self.candidates(preds, views, width, height)
         if self.tiles == "auto":
             self.people_tiles.observe(found.boxes, found.scores, width, height)
+        else:
+            self.grid_schedule.observe(found.boxes)
         dets = Detections(found.boxes.astype(np.float32), found.scores)
         clock = self._tick("boxes", clock)
         if self.with_masks and len(found.boxes):
