@@ -18,10 +18,9 @@ on (``ReID(reuse=True)``, which the pipeline does not do by default; see
 densepeds.reid.ReusePolicy). ``--int8 FILE`` adds `densepeds run --detector-model FILE`, the
 detector's int8 copy made by `densepeds models quantize` (densepeds.quantize), on the default
 tiles and on the grid; ``--skip K`` adds the int8 copy on the grid with a full scan every K-th
-frame only (YoloSegDetector ``full_scan_every``). ``--only NAME...`` times only those pipelines
-beside the reference. ``--memory``
-appends `benchmarks/memory.py`'s table; ``--write``
-writes the whole report as Markdown. Figures only: nothing is asserted.
+frame only (`densepeds run --full-scan-every K`). ``--only NAME...`` times only those pipelines
+beside the reference. ``--memory`` appends `benchmarks/memory.py`'s table; ``--write`` writes the
+whole report as Markdown. Figures only: nothing is asserted.
 """
 
 from __future__ import annotations
@@ -45,7 +44,6 @@ SHARED = Path(os.environ.get("DENSEPEDS_SHARED", REPO.parent / "shared"))
 os.environ.setdefault("DENSEPEDS_MODEL_DIR", str(SHARED / "models"))
 STAGE_RE = re.compile(r"([a-z]+) ([0-9.]+)")
 REUSE_CHILD = "--child-run-with-reuse"
-SKIP_CHILD = "--child-run-with-full-scan-every"
 DETECTOR_INPUT = 320  # the shared segmenter's input size, which sets the automatic tiles
 
 
@@ -62,24 +60,6 @@ def _run_with_reuse(argv: list[str]) -> int:
 
     reid.ReID.__init__ = init  # type: ignore[method-assign]
     return cli_main(["run", *argv])
-
-
-def _run_with_skip(argv: list[str]) -> int:
-    """`densepeds run ARGV[1:]` with the yoloseg detector's ``full_scan_every=ARGV[0]`` (a full
-    scan every K-th frame, between only the tiles showing somebody; `densepeds run` has no
-    option for it)."""
-    from densepeds.cli import main as cli_main
-    from densepeds.detect import yoloseg
-
-    every = int(argv[0])
-    plain_init = yoloseg.YoloSegDetector.__init__
-
-    def init(self: yoloseg.YoloSegDetector, *args: object, **kwargs: object) -> None:
-        kwargs.setdefault("full_scan_every", every)
-        plain_init(self, *args, **kwargs)  # type: ignore[arg-type]
-
-    yoloseg.YoloSegDetector.__init__ = init  # type: ignore[method-assign]
-    return cli_main(["run", *argv[1:]])
 
 
 def _cpu_prefix(threads: int) -> list[str]:
@@ -203,9 +183,8 @@ def compare(
         grid_int8 = ["--detector-model", str(args.int8.resolve()), "--tiles", tiles]
         cmds["ours+int8 on the grid"] = [*run, *grid_int8, "--out", f"{tmp}/int8-grid.txt"]
         if args.skip:
-            child = [*nice, *pin, sys.executable, __file__, SKIP_CHILD, str(args.skip)]
-            child += [str(seq_dir), "--detector", "yoloseg", "--frames", frames, "-q"]
-            cmds[skip_name(args.skip)] = [*child, *grid_int8, "--out", f"{tmp}/int8-skip.txt"]
+            skip = ["--full-scan-every", str(args.skip), "--out", f"{tmp}/int8-skip.txt"]
+            cmds[skip_name(args.skip)] = [*run, *grid_int8, *skip]
     # `densepeds run` ends with "... N frames/s for the whole pipeline; timed: ... ms/frame)".
     markers = {name: "frames/s" for name in cmds} | {"reference": "reference:"}
     runs: dict[str, list[Run]] = {name: [] for name in names}
@@ -371,6 +350,4 @@ def main() -> int:
 if __name__ == "__main__":
     if len(sys.argv) > 1 and sys.argv[1] == REUSE_CHILD:
         sys.exit(_run_with_reuse(sys.argv[2:]))
-    if len(sys.argv) > 1 and sys.argv[1] == SKIP_CHILD:
-        sys.exit(_run_with_skip(sys.argv[2:]))
     sys.exit(main())

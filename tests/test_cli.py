@@ -442,3 +442,32 @@ def test_tiles_option(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> Non
     rc, _, err = _run(capsys, *base, "--tiles", "2x2")
     assert rc == 0, err
     assert out.exists()
+
+
+def test_full_scan_every_option(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """--full-scan-every reaches the yoloseg detector; without it the detector scans every frame;
+    a run that does not detect with yoloseg, or a K below 1, is one line."""
+    from densepeds.detect import yoloseg
+
+    seq = shared_path("data", "PETS09-S2L1-dev")
+    out = tmp_path / "t.txt"
+    rc, _, err = _run(capsys, "run", str(seq), "--frames", "1:3", "--full-scan-every", "2", "-q")
+    _one_line_error(rc, err, "--full-scan-every", "--detector yoloseg")
+    seen: list[int] = []
+    plain_init = yoloseg.YoloSegDetector.__init__
+
+    def init(self: yoloseg.YoloSegDetector, *args: object, **kwargs: object) -> None:
+        plain_init(self, *args, **kwargs)  # type: ignore[arg-type]
+        seen.append(self.grid_schedule.full_scan_every)
+
+    monkeypatch.setattr(yoloseg.YoloSegDetector, "__init__", init)
+    base = ("run", str(seq), "--detector", "yoloseg", "--frames", "1:2", "--out", str(out), "-q")
+    rc, _, err = _run(capsys, *base, "--tiles", "2x2", "--full-scan-every", "0")
+    _one_line_error(rc, err, "full_scan_every", "0")
+    rc, _, err = _run(capsys, *base, "--tiles", "2x2", "--full-scan-every", "3")
+    assert rc == 0, err
+    rc, _, err = _run(capsys, *base, "--tiles", "2x2")
+    assert rc == 0, err
+    assert seen == [3, 1] and out.exists()

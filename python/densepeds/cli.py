@@ -137,6 +137,14 @@ def build_parser() -> argparse.ArgumentParser:
         "(at most twice the fixed grid's views); CxR a fixed grid of overlapping tiles, e.g. 3x2 "
         "(faster, fewer people found in crowds); none the whole frame in one view",
     )
+    run.add_argument(
+        "--full-scan-every",
+        metavar="K",
+        type=int,
+        help="the yoloseg detector runs all its views every K-th frame only, and in between just "
+        "the views that show somebody found in the last K frames (fewer views, faster; the tracks "
+        "change); default 1: all views every frame",
+    )
     run.add_argument("--reid-model", metavar="PATH", help=REID_MODEL_HELP)
     run.add_argument(
         "--motion",
@@ -574,6 +582,17 @@ def open_run(args: argparse.Namespace, models: Any = None) -> tuple[Any, Any, An
             "--tiles sets the CNN detector's views, and this run tracks detections from a file "
             "(add --detector yoloseg to detect)"
         )
+    full_scan_every = getattr(args, "full_scan_every", None)
+    if full_scan_every is not None and (detector != "yoloseg" or args.detections is not None):
+        raise ParameterError(
+            "--full-scan-every sets the yoloseg detector's views, and this run does not detect "
+            "with it (add --detector yoloseg to detect)"
+        )
+    detector_options = {
+        key: value
+        for key, value in (("tiles", tiles), ("full_scan_every", full_scan_every))
+        if value is not None
+    }
     # Read the det file and load the models before tracking, so that mistakes surface at once.
     dets: Any = read_detections(args.detections) if args.detections else None
     detector_spec: Any = detector
@@ -591,7 +610,7 @@ def open_run(args: argparse.Namespace, models: Any = None) -> tuple[Any, Any, An
         motion=args.motion,
         features=features,
         detector_model=args.detector_model,
-        detector_options=None if tiles is None else {"tiles": tiles},
+        detector_options=detector_options or None,
         preset=preset,
         **dict(args.param),
     )
