@@ -8,6 +8,7 @@ import re
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -471,3 +472,37 @@ def test_full_scan_every_option(
     rc, _, err = _run(capsys, *base, "--tiles", "2x2")
     assert rc == 0, err
     assert seen == [3, 1] and out.exists()
+
+
+def test_fill_gaps_option(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """--fill-gaps writes the online run's tracks with each short gap between a track's
+    detections interpolated (densepeds.gaps.fill_gaps of the same run's rows); a negative N is
+    one line before any frame is tracked."""
+    from densepeds import pipeline as pipeline_module
+    from densepeds.gaps import fill_gaps
+
+    seq = shared_path("data", "TUD-Stadtmitte")
+    online, filled = tmp_path / "online.txt", tmp_path / "filled.txt"
+    plain_rows = pipeline_module.track_rows
+    base = ("run", str(seq), "--frames", "1:80", "-q")
+    assert main([*base, "--out", str(online)]) == 0
+    seen: list[list[float]] = []
+
+    def spy(frame_no: int, tracks: Any) -> list[tuple[float, ...]]:
+        out = plain_rows(frame_no, tracks)
+        seen.extend([*r, float(m)] for r, m in zip(out, tracks.det_index >= 0, strict=True))
+        return out
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(pipeline_module, "track_rows", spy)
+        assert main([*base, "--out", str(filled), "--fill-gaps", "10"]) == 0
+    want = fill_gaps(np.array(seen), 10)
+    got = read_tracks(filled)
+    assert len(got) == len(want) and len(got) > len(read_tracks(online))
+    key = np.lexsort((got[:, 1], got[:, 0]))
+    wkey = np.lexsort((want[:, 1], want[:, 0]))
+    np.testing.assert_allclose(got[key, :2], want[wkey, :2])
+    np.testing.assert_allclose(got[key, 2:4], want[wkey, 2:4], atol=1e-3)
+    rc, _, err = _run(capsys, *base, "--out", str(tmp_path / "x.txt"), "--fill-gaps", "-1")
+    _one_line_error(rc, err, "--fill-gaps", "-1")
+    assert not (tmp_path / "x.txt").exists()

@@ -177,6 +177,15 @@ def build_parser() -> argparse.ArgumentParser:
         help="tracks output file, MOTChallenge format (default: out/<input name>.txt)",
     )
     run.add_argument("--video", metavar="OUT.mp4", type=Path, help="annotated video output")
+    run.add_argument(
+        "--fill-gaps",
+        metavar="N",
+        type=int,
+        default=0,
+        help="after the run, replace what each track reported between two of its detections at "
+        "most N frames apart (coasted boxes, or none) by the straight line between them: an "
+        "offline step, in the tracks file only (--video shows the online tracks); default 0: off",
+    )
     _add_param_option(run)
     run.add_argument("--seed", type=int, default=0, help="built-in scene: random seed")
     run.add_argument("--scene-frames", type=int, default=150, help="built-in scene: frames")
@@ -424,6 +433,8 @@ def _track_source(
     from densepeds.video import AnnotatedVideoWriter, parse_frame_range
 
     rng = parse_frame_range(rng if rng is not None else args.frames)
+    if getattr(args, "fill_gaps", 0) < 0:
+        raise ParameterError(f"--fill-gaps must be >= 0 frames, got {args.fill_gaps}")
     expected = _expected_frames(src, rng)
     # Unwritable outputs fail now, not after the run.
     probe_output(out)
@@ -431,6 +442,7 @@ def _track_source(
     if args.video:
         probe_output(args.video)
     rows: list[tuple[float, ...]] = []
+    matched: list[bool] = []  # per row: the track took a detection in that frame
     ids: set[int] = set()
     frames = 0
     bar = _progress(expected, args.quiet, src.name)
@@ -439,6 +451,7 @@ def _track_source(
         for res in pipe.run_frames(src, rng, dets):
             with pipe.times.stage("output"):
                 rows.extend(track_rows(res.frame_no, res.tracks))
+                matched.extend((res.tracks.det_index >= 0).tolist())
                 ids.update(res.tracks.ids.tolist())
                 if writer is not None:
                     writer.write(
@@ -464,7 +477,7 @@ def _track_source(
         if interrupted:
             if not keep_on_interrupt:
                 raise KeyboardInterrupt
-            _finish(args, out, rows, writer, pipe)
+            _finish(args, out, _filled(args, rows, matched), writer, pipe)
             raise _Interrupted(
                 f"interrupted after {frames} frames (last {rng.first + frames - 1}); their tracks "
                 f"are in {out}" + (f" and {args.video}" if writer is not None else "")
@@ -483,8 +496,20 @@ def _track_source(
         if writer is not None:
             writer.abort()
         raise
-    _finish(args, out, rows, writer, pipe)
+    _finish(args, out, _filled(args, rows, matched), writer, pipe)
     return frames, len(ids)
+
+
+def _filled(args: argparse.Namespace, rows: list[tuple[float, ...]], matched: list[bool]) -> Any:
+    """The rows to write: as tracked, or with ``--fill-gaps N`` (densepeds.gaps.fill_gaps)."""
+    import numpy as np
+
+    from densepeds.gaps import fill_gaps
+
+    max_gap = getattr(args, "fill_gaps", 0)
+    if not max_gap or not rows:
+        return rows
+    return fill_gaps(np.c_[np.asarray(rows, dtype=np.float64), matched], max_gap)
 
 
 def _finish(
