@@ -132,7 +132,7 @@ def _header(title: str, what: str) -> list[str]:
         "",
         what,
         "",
-        f"Regenerate every accuracy table with `{COMMAND}` (about 20 minutes on 2 cores once "
+        f"Regenerate every accuracy table with `{COMMAND}` (about 12 minutes on 2 cores once "
         "`out/cache` holds the videos' detections and embeddings; `realvideo.py` computes them "
         "on first use).",
         "",
