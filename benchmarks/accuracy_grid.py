@@ -17,8 +17,10 @@ The grid's cells are sequence x detection source:
 
 Optional sources, scored only where a ``--cells`` pattern names them and never in the grid's
 mean: ``ortq`` (the int8 copy of ``densepeds models quantize``), ``grid`` and ``ortq-grid`` (the
-float and int8 copies on the reference pipeline's fixed grid of tiles). ``--fast-table FILE``
-scores these beside the defaults on both videos and writes their table (``results/fast.md``).
+float and int8 copies on the reference pipeline's fixed grid of tiles), and each of those with
+``-scan4`` (``scan4`` for the float copy on the default tiles; ``scan2`` too): a full scan every
+4th frame only (the detector's ``full_scan_every``). ``--fast-table FILE`` scores these beside
+the defaults on both videos and writes their table (``results/fast.md``).
 
 Every cell is tracked through ``densepeds.Pipeline.step`` (the code behind ``densepeds run``: a
 det file keeps the tracker's own defaults, a CNN detector gets the pipeline's presets) and scored
