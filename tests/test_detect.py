@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
@@ -638,6 +639,29 @@ def test_people_tiles_scan_everything_every_k_frames() -> None:
         PeopleTiles(320, 0.25, 100, 3.0, full_scan_every=0)
 
 
+def _full_against_skip(
+    frames: dict[int, np.ndarray],
+    truth_at: Callable[[int], np.ndarray],
+    full: YoloSegDetector,
+    skip: YoloSegDetector,
+    was_full_scan: Callable[[], bool],
+) -> tuple[dict[str, int], dict[str, int], list[bool], int]:
+    """People found and views run per detector over the frames, whether each of the skipping
+    detector's frames was a full scan, and the ground-truth count."""
+    found = {"full": 0, "skip": 0}
+    views = {"full": 0, "skip": 0}
+    scans = []
+    total = 0
+    for k, frame in frames.items():
+        truth = truth_at(k)
+        total += len(truth)
+        for name, det in (("full", full), ("skip", skip)):
+            found[name] += recall(det(frame), truth)[0]
+            views[name] += det.last_views
+        scans.append(was_full_scan())
+    return found, views, scans, total
+
+
 def test_full_scans_on_a_real_crowd_skip_views_but_keep_the_people() -> None:
     """MOT20-01 frames 1-12 with a full scan every 4th frame: the frames between run fewer
     views than the full layout and find about the same visible people (the detector alone,
@@ -650,17 +674,9 @@ def test_full_scans_on_a_real_crowd_skip_views_but_keep_the_people() -> None:
     full = make_detector("yoloseg", model, threads=2)
     skip = make_detector("yoloseg", model, threads=2, full_scan_every=4)
     assert isinstance(full, YoloSegDetector) and isinstance(skip, YoloSegDetector)
-    found = {"full": 0, "skip": 0}
-    views = {"full": 0, "skip": 0}
-    scans = []
-    total = 0
-    for k, frame in frames.items():
-        truth = visible_gt(gt, k)
-        total += len(truth)
-        for name, det in (("full", full), ("skip", skip)):
-            found[name] += recall(det(frame), truth)[0]
-            views[name] += det.last_views
-        scans.append(skip.people_tiles.last_full)
+    found, views, scans, total = _full_against_skip(
+        frames, lambda k: visible_gt(gt, k), full, skip, lambda: skip.people_tiles.last_full
+    )
     print(f"MOT20-01 frames 1-12: found {found} of {total}, views {views}")
     # The grid until enough people are seen, then a full scan every 4th frame.
     first = scans.index(False)
@@ -744,17 +760,9 @@ def test_fixed_grid_skipping_on_a_real_video_keeps_the_people() -> None:
     full = make_detector("yoloseg", model, threads=2, tiles="2x2")
     skip = make_detector("yoloseg", model, threads=2, tiles="2x2", full_scan_every=4)
     assert isinstance(full, YoloSegDetector) and isinstance(skip, YoloSegDetector)
-    found = {"full": 0, "skip": 0}
-    views = {"full": 0, "skip": 0}
-    scans = []
-    total = 0
-    for k, frame in frames.items():
-        truth = pets09_gt_boxes(gt, k)
-        total += len(truth)
-        for name, det in (("full", full), ("skip", skip)):
-            found[name] += recall(det(frame), truth)[0]
-            views[name] += det.last_views
-        scans.append(skip.grid_schedule.last_full)
+    found, views, scans, total = _full_against_skip(
+        frames, lambda k: pets09_gt_boxes(gt, k), full, skip, lambda: skip.grid_schedule.last_full
+    )
     print(f"PETS09 frames 41-64, 2x2: found {found} of {total}, views {views}")
     assert scans == [i % 4 == 0 for i in range(24)]
     assert views["full"] == 4 * 24 and views["skip"] < views["full"]
