@@ -83,6 +83,21 @@ def test_settings_are_checked_before_any_input(tmp_path: Path) -> None:
     assert a == Settings(features="none").digest({})
     assert a != Settings(features="none", params=(("max_age", 30),)).digest({})
     assert a != Settings(features="none").digest({"reid": "0" * 64})
+    assert a != Settings(features="none", fill_gaps=40).digest({})
+    with pytest.raises(ParameterError, match="fill_gaps"):
+        Settings(fill_gaps=-1).check()
+
+
+def test_a_job_gets_runs_options(tmp_path: Path) -> None:
+    """The batch settings reach the `run` options of each job, --fill-gaps included."""
+    from types import SimpleNamespace
+
+    from densepeds.batch_worker import run_args
+
+    job = SimpleNamespace(input=tmp_path / "a.mp4", tracks=tmp_path / "a.txt", video_file=None)
+    args = run_args(Settings(motion="cv", frames="1:9", fill_gaps=40), job, None)  # type: ignore[arg-type]
+    assert (args.motion, args.frames, args.fill_gaps, args.out) == ("cv", "1:9", 40, job.tracks)
+    assert run_args(Settings(), job, None).fill_gaps == 0  # type: ignore[arg-type]
 
 
 def test_bad_batch_command_is_one_line(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:

@@ -176,6 +176,7 @@ def run(
     frames: str | None = None,
     params: Mapping[str, Any] | None = None,
     video: bool = False,
+    fill_gaps: int = 0,
     workers: int | None = None,
     threads: int = 1,
     address: str | None = None,
@@ -199,6 +200,7 @@ def run(
         frames=frames,
         params=tuple(sorted((params or {}).items())),
         video=video,
+        fill_gaps=fill_gaps,
     )
     if threads < 1:
         raise ParameterError(f"threads must be >= 1, got {threads}")
@@ -275,6 +277,13 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     _add_param_option(p)
     p.add_argument("--video", action="store_true", help="also write NAME.mp4 (annotated)")
     p.add_argument(
+        "--fill-gaps",
+        type=int,
+        default=0,
+        metavar="N",
+        help="interpolate each track's gaps of up to N frames between detections (as for run)",
+    )
+    p.add_argument(
         "--workers",
         type=int,
         metavar="N",
@@ -303,6 +312,7 @@ def cmd_batch(args: argparse.Namespace) -> int:
         "frames": args.frames,
         "params": dict(args.param),
         "video": args.video,
+        "fill_gaps": args.fill_gaps,
     }
     if args.dry_run:
         settings = Settings(**{**options, "params": tuple(sorted(options["params"].items()))})

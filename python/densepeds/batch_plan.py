@@ -35,7 +35,7 @@ class Settings:
     """The ``densepeds run`` options every input of a batch is tracked with (see ``run --help``).
 
     ``params``: tracker parameters (``--param KEY=VALUE``); ``video``: also write an annotated
-    ``NAME.mp4`` per input.
+    ``NAME.mp4`` per input; ``fill_gaps``: ``run --fill-gaps`` (0: off).
     """
 
     detector: str | None = None
@@ -46,6 +46,7 @@ class Settings:
     frames: str | None = None
     params: tuple[tuple[str, Any], ...] = ()
     video: bool = False
+    fill_gaps: int = 0
 
     def check(self) -> None:
         """Raise ParameterError for a value ``run`` would refuse (before any input is opened)."""
@@ -57,6 +58,8 @@ class Settings:
             raise ParameterError(f"features {self.features!r}: expected one of {FEATURES}")
         if self.motion not in MOTIONS:
             raise ParameterError(f"motion {self.motion!r}: expected one of {MOTIONS}")
+        if self.fill_gaps < 0:
+            raise ParameterError(f"fill_gaps must be >= 0 frames, got {self.fill_gaps}")
         parse_frame_range(self.frames)
         # Builds the tracker only (models load lazily): rejects unknown or bad tracker values.
         Pipeline(self.detector, motion=self.motion, features="none", **dict(self.params))

@@ -137,6 +137,7 @@ def run_args(settings: Settings, job: Job, threads: int | None) -> Any:
         args.param.append(("threads", threads))  # the motion step's threads: same results
     args.out = job.tracks
     args.video = job.video_file
+    args.fill_gaps = settings.fill_gaps
     args.quiet = True
     return args
 
