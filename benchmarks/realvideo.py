@@ -126,7 +126,7 @@ def _cache_key(seq: str, frames: str, detector_options: dict[str, Any]) -> str:
     rules: tuple[Any, ...] = (tiling.auto_grid,)
     if settings.get("tiles") == "auto":
         rules += (tiling.fit_perspective, tiling.people_tiles, tiling._people_tiles)
-        rules += (tiling.occupied_tiles, tiling.PeopleTiles)
+        rules += (tiling.occupied_tiles, tiling.SkipSchedule, tiling.PeopleTiles)
     else:
         skip = settings.get("full_scan_every", 1)
         settings = {k: v for k, v in settings.items() if k not in tiling.PEOPLE_SETTINGS}

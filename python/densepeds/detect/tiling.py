@@ -323,15 +323,21 @@ class SkipSchedule:
         self._since_full = 0
         self.last_full = True
 
+    def full_scan_due(self) -> bool:
+        """Whether the next frame is a full scan whatever its layout."""
+        return self._layout is None or self._since_full + 1 >= self.full_scan_every
+
     def tiles(self, layout: list[Tile]) -> list[Tile]:
         """The tiles of ``layout`` to run on the next frame."""
-        if layout != self._layout or self._since_full + 1 >= self.full_scan_every:
+        if layout != self._layout or self.full_scan_due():
             self._layout = layout
             self._since_full = 0
             self.last_full = True
             return layout
         self._since_full += 1
         self.last_full = False
+        if not layout:
+            return []
         people = np.concatenate(self._recent) if self._recent else np.zeros((0, 4))
         return [layout[k] for k in occupied_tiles(layout, people, self.margin)]
 
@@ -339,11 +345,15 @@ class SkipSchedule:
         self._recent.append(np.asarray(boxes, np.float64).reshape(-1, 4))
         del self._recent[: -self.full_scan_every]
 
-    def reset(self) -> None:
-        self._recent.clear()
+    def restart(self) -> None:
+        """The next frame is a full scan (the people seen lately are kept)."""
         self._layout = None
         self._since_full = 0
         self.last_full = True
+
+    def reset(self) -> None:
+        self._recent.clear()
+        self.restart()
 
 
 class PeopleTiles:
@@ -352,15 +362,12 @@ class PeopleTiles:
     ``tiles(width, height)`` gives the views for the next frame: ``auto_grid``'s tiles until
     ``min_people`` confident detections (score >= ``min_score``) have been seen, then
     ``people_tiles`` on the perspective fitted to those of the last ``window`` full scans, at
-    most ``max_tiles`` and at most ``GRID_MULTIPLE`` times the grid's views. Every
-    ``full_scan_every``-th frame runs all of those tiles (a full scan, where the layout is
-    refitted and then kept until the next one), so that people who enter or were missed are
-    looked for at least that often; the frames between run only the tiles that show whole
-    somebody detected in the last ``full_scan_every`` frames, the last full scan's included
-    (``occupied_tiles``, people grown by ``margin`` of their height; the whole frame in one
-    view when nobody was). ``full_scan_every=1``: every frame a full scan. ``last_full``
-    says whether the last ``tiles`` call was one. ``observe`` feeds a frame's detections (a
-    frame of another size starts over: another video).
+    most ``max_tiles`` and at most ``GRID_MULTIPLE`` times the grid's views. The layout is
+    refitted on full scans only and kept until the next one; which of its tiles run on the
+    frames between is ``SkipSchedule``'s rule (``full_scan_every``, ``margin``), so that
+    people who enter or were missed are looked for at least every ``full_scan_every`` frames.
+    ``last_full`` says whether the last ``tiles`` call was a full scan. ``observe`` feeds a
+    frame's detections (a frame of another size starts over: another video).
     """
 
     def __init__(
@@ -375,8 +382,7 @@ class PeopleTiles:
         min_people: int = 10,
         margin: float = 0.1,
     ) -> None:
-        if full_scan_every < 1:
-            raise ParameterError(f"full_scan_every must be >= 1, got {full_scan_every}")
+        self.schedule = SkipSchedule(full_scan_every, margin)  # full scans and the frames between
         self.input_size = input_size
         self.person_share = person_share
         self.max_tiles = max_tiles
@@ -385,22 +391,19 @@ class PeopleTiles:
         self.window = window
         self.min_score = min_score
         self.min_people = min_people
-        self.margin = margin
         self._seen: list[FloatArray] = []
-        self._recent: list[FloatArray] = []
         self._size = (0, 0)
-        self._layout: list[Tile] | None = None  # the full scan's tiles
-        self._since_full = 0  # frames since the last full scan
+        self._layout: list[Tile] = []  # the last full scan's tiles
         self.last_full = True
         self.perspective: Perspective | None = None
 
     def tiles(self, width: int, height: int) -> list[Tile]:
         cols, rows = auto_grid(width, height, self.input_size)
-        self.last_full = True
         if self.perspective is None or (width, height) != self._size:
-            self._layout = None
+            self.schedule.restart()  # the people's layout starts with a full scan
+            self.last_full = True
             return make_tiles(width, height, cols, rows) if cols * rows > 1 else []
-        if self._layout is None or self._since_full + 1 >= self.full_scan_every:
+        if self.schedule.full_scan_due():
             # A full scan: the layout is refitted here only, and kept until the next one.
             self._layout = people_tiles(
                 width,
@@ -411,14 +414,9 @@ class PeopleTiles:
                 min(self.max_tiles, GRID_MULTIPLE * cols * rows),
                 self.max_scale,
             )
-            self._since_full = 0
-            return self._layout
-        self._since_full += 1
-        self.last_full = False
-        if not self._layout:
-            return []
-        people = np.concatenate(self._recent)
-        return [self._layout[k] for k in occupied_tiles(self._layout, people, self.margin)]
+        tiles = self.schedule.tiles(self._layout)
+        self.last_full = self.schedule.last_full
+        return tiles
 
     def observe(
         self, boxes: FloatArray, scores: npt.NDArray[np.floating], width: int, height: int
@@ -427,8 +425,7 @@ class PeopleTiles:
             self.reset()
             self._size = (width, height)
         boxes = np.asarray(boxes, np.float64).reshape(-1, 4)
-        self._recent.append(boxes)
-        del self._recent[: -self.full_scan_every]
+        self.schedule.observe(boxes)
         if self.last_full:  # the people's sizes from full scans only: a steady layout
             self._seen.append(boxes[np.asarray(scores) >= self.min_score])
             del self._seen[: -self.window]
@@ -436,9 +433,8 @@ class PeopleTiles:
 
     def reset(self) -> None:
         self._seen.clear()
-        self._recent.clear()
+        self.schedule.reset()
         self._size = (0, 0)
-        self._layout = None
-        self._since_full = 0
+        self._layout = []
         self.last_full = True
         self.perspective = None
