@@ -305,15 +305,11 @@ def loo_table(results: Mapping[str, Results], skipped: Sequence[str]) -> list[st
 def _matches(
     a: npt.NDArray[np.float64], b: npt.NDArray[np.float64], thr: float = 0.5
 ) -> list[tuple[int, int]]:
-    """Pairs (i, j) of an optimal one-to-one assignment of boxes a to b with IoU >= thr."""
-    from densepeds import _core
-    from scipy.optimize import linear_sum_assignment
+    """Pairs (i, j) of the one-to-one matching of boxes a to b at IoU >= thr (densepeds.boxes)."""
+    from densepeds.boxes import match_boxes
 
-    if not len(a) or not len(b):
-        return []
-    iou = np.asarray(_core.iou_matrix(a.astype(np.float64), b.astype(np.float64)))
-    rows, cols = linear_sum_assignment(-np.where(iou >= thr, iou, 0.0))
-    return [(int(r), int(c)) for r, c in zip(rows, cols, strict=True) if iou[r, c] >= thr]
+    rows, cols = match_boxes(a, b, thr)
+    return [(int(r), int(c)) for r, c in zip(rows, cols, strict=True)]
 
 
 @dataclass

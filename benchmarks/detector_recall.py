@@ -28,7 +28,6 @@ from typing import Any
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import accuracy_grid  # noqa: E402
@@ -38,7 +37,7 @@ BINS = (0.0, 0.25, 0.5, 0.75, 1.01)
 
 
 def run(seq: str, frames: str, every: int, options: dict[str, Any]) -> dict[str, float]:
-    from densepeds.boxes import iou_matrix
+    from densepeds.boxes import match_boxes
     from densepeds.pipeline import Pipeline
 
     seq_dir = realvideo.SHARED / "data" / seq
@@ -69,10 +68,7 @@ def run(seq: str, frames: str, every: int, options: dict[str, Any]) -> dict[str,
         boxes = np.c_[g[:, 2:4], g[:, 2:4] + g[:, 4:6]]
         hit = np.zeros(len(g), bool)
         if len(g) and len(kept):
-            iou = iou_matrix(boxes, kept)
-            r, c = linear_sum_assignment(-iou)
-            ok = iou[r, c] >= 0.5
-            hit[r[ok]] = True
+            hit[match_boxes(boxes, kept, 0.5)[0]] = True
         unmatched += len(kept) - hit.sum()
         b = np.clip(np.digitize(vis[sel], BINS) - 1, 0, len(BINS) - 2)
         np.add.at(total, b, 1)

@@ -104,8 +104,7 @@ def detection_rows(
 
 def recall_rows(model: Path, threads: int, shared: Path, int8: Path | None = None) -> list[str]:
     """Recall at IoU 0.5 of gt pedestrians with visibility >= 0.5 (as tests/test_detect.py)."""
-    from densepeds.boxes import iou_matrix
-    from scipy.optimize import linear_sum_assignment
+    from densepeds.boxes import match_boxes
 
     mot17 = shared / "data" / "MOT17-02-FRCNN"
     mot20 = shared / "data" / "MOT20-01-dev"
@@ -138,10 +137,7 @@ def recall_rows(model: Path, threads: int, shared: Path, int8: Path | None = Non
                 truth = np.c_[sel[:, 2:4], sel[:, 2:4] + sel[:, 4:6]]
                 boxes = det(frame).boxes.astype(np.float64)
                 total += len(truth)
-                if len(boxes) and len(truth):
-                    iou = iou_matrix(truth, boxes)
-                    r, c = linear_sum_assignment(-iou)
-                    found += int((iou[r, c] >= 0.5).sum())
+                found += len(match_boxes(truth, boxes, 0.5)[0])
             cells.append(f"{found}/{total} = {found / max(total, 1):.2f}")
         rows.append(f"| {name} | " + " | ".join(cells) + " |")
     return rows

@@ -75,8 +75,7 @@ class Matched:
 
 def match_gt(video: realvideo.CachedVideo) -> Matched:
     """Each frame's detections matched to its ground-truth people (IoU >= MIN_IOU)."""
-    from densepeds._core import linear_sum_assignment
-    from densepeds.boxes import iou_matrix
+    from densepeds.boxes import match_boxes
     from densepeds.motio import read_gt
 
     gt = read_gt(video.seq_dir / "gt" / "gt.txt")
@@ -90,11 +89,8 @@ def match_gt(video: realvideo.CachedVideo) -> Matched:
         ids = np.zeros(0, np.int64)
         rows = np.zeros(0, np.intp)
         if len(g) and len(dets):
-            iou = iou_matrix(boxes, dets.boxes.astype(np.float64))
-            r, c = linear_sum_assignment(-iou)
-            good = iou[r, c] >= MIN_IOU
-            r, c = r[good], c[good]
-            ids, rows = g[r, 1].astype(np.int64), np.asarray(c, np.intp)
+            r, c = match_boxes(boxes, dets.boxes, MIN_IOU)
+            ids, rows = g[r, 1].astype(np.int64), c
             boxes, g = boxes[r], g[r]
         else:
             boxes, g = np.zeros((0, 4)), g[:0]

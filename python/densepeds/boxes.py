@@ -39,3 +39,19 @@ def iou_matrix(a: npt.ArrayLike, b: npt.ArrayLike) -> FloatArray:
         return _core.iou_matrix(as_boxes(a), as_boxes(b))
     except ValueError as exc:
         raise InputError(str(exc)) from exc
+
+
+def match_boxes(
+    a: npt.ArrayLike, b: npt.ArrayLike, min_iou: float = 0.5
+) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]]:
+    """One-to-one matching of boxes ``a`` to boxes ``b``: the pairs ``(rows, cols)`` with IoU at
+    least ``min_iou`` of the assignment with the largest total IoU over such pairs (pairs under
+    ``min_iou`` count as nothing, so they never displace a valid pair). Rows are ascending."""
+    iou = iou_matrix(a, b)
+    if iou.size == 0:
+        return np.zeros(0, np.intp), np.zeros(0, np.intp)
+    rows, cols = _core.linear_sum_assignment(-np.where(iou >= min_iou, iou, 0.0))
+    rows, cols = np.asarray(rows, np.intp), np.asarray(cols, np.intp)
+    keep = iou[rows, cols] >= min_iou
+    order = np.argsort(rows[keep], kind="stable")
+    return rows[keep][order], cols[keep][order]

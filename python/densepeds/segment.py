@@ -141,16 +141,12 @@ def masks_for_boxes(
     Boxes are matched one-to-one to ``dets`` by IoU (Hungarian, at least ``min_iou``); returns
     the matched boxes carrying their detection's mask, and the indices of those boxes.
     """
-    from densepeds._core import linear_sum_assignment
-    from densepeds.boxes import iou_matrix
+    from densepeds.boxes import match_boxes
 
     target = np.asarray(boxes, np.float64).reshape(-1, 4)
     if len(target) == 0 or len(dets) == 0 or dets.masks is None or dets.mask_boxes is None:
         return Detections.empty(), np.zeros(0, np.intp)
-    iou = iou_matrix(target, dets.boxes.astype(np.float64))
-    rows, cols = linear_sum_assignment(-iou)
-    good = iou[rows, cols] >= min_iou
-    rows, cols = rows[good], cols[good]
+    rows, cols = match_boxes(target, dets.boxes, min_iou)
     masks = [dets.masks[c] for c in cols]
     out = Detections(
         target[rows].astype(np.float32), dets.scores[cols], masks, dets.mask_boxes[cols]

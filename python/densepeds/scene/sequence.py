@@ -147,9 +147,7 @@ class Scene(FrameSource):
         ``rows`` (frame, id, x1, y1, x2, y2, ...): per frame, the one-to-one assignment of
         output boxes to every person's full box with the largest total IoU, pairs under
         ``min_iou`` dropped. A person hidden and found again under one id keeps that id here."""
-        from scipy.optimize import linear_sum_assignment
-
-        from densepeds._core import iou_matrix
+        from densepeds.boxes import match_boxes
 
         out = np.zeros((self.config.frames, self.positions.shape[1]), np.int64)
         r = np.asarray(rows, np.float64).reshape(-1, np.shape(rows)[-1] if np.size(rows) else 7)
@@ -159,10 +157,8 @@ class Scene(FrameSource):
             if not len(g) or not len(t):
                 continue
             boxes = np.c_[g[:, 2:4], g[:, 2:4] + g[:, 4:6]]
-            iou = np.asarray(iou_matrix(boxes, np.ascontiguousarray(t[:, 2:6])))
-            for i, j in zip(*linear_sum_assignment(-iou), strict=True):
-                if iou[i, j] >= min_iou:
-                    out[k - 1, int(g[i, 1]) - 1] = int(t[j, 1])
+            for i, j in zip(*match_boxes(boxes, t[:, 2:6], min_iou), strict=True):
+                out[k - 1, int(g[i, 1]) - 1] = int(t[j, 1])
         return out
 
     @staticmethod
