@@ -50,7 +50,12 @@ def tiny_model(path: Path, props: dict[str, str] | None = None, scale: float = 2
 
 def test_metadata_read_without_onnx_matches_onnx(tmp_path: Path) -> None:
     props = {"densepeds.quantized_from_sha256": "ab" * 32, "note": "ünïcode, commas, = signs"}
-    files = [tiny_model(tmp_path / "m.onnx", props), shared_path("models", OSNET)]
+    files = [
+        tiny_model(tmp_path / "m.onnx", props),
+        tiny_model(tmp_path / "empty-entry.onnx", {"": ""}),
+        shared_path("models", OSNET),
+        shared_path("models", YOLO),
+    ]
     for path in files:
         expected = {p.key: p.value for p in onnx.load(str(path)).metadata_props}
         assert onnxutil.model_metadata(path) == expected
@@ -59,6 +64,10 @@ def test_metadata_read_without_onnx_matches_onnx(tmp_path: Path) -> None:
     bad.write_bytes(b"\xff\xff\xff not protobuf")
     with pytest.raises(ModelError, match="not a readable ONNX model"):
         onnxutil.model_metadata(bad)
+    for truncated in (b"", files[0].read_bytes()[:-3]):
+        bad.write_bytes(truncated)
+        with pytest.raises(ModelError, match="not a readable ONNX model"):
+            onnxutil.model_metadata(bad)
     with pytest.raises(ModelError, match="not a readable ONNX model"):
         onnxutil.model_metadata(tmp_path / "missing.onnx")
 
@@ -177,3 +186,13 @@ def test_imports_stay_light(cache: Path) -> None:
     assert "onnx" in _imported(make, env)  # cold: the models are rewritten
     warm = _imported(make, env)
     assert "onnxruntime" in warm and not warm & {"onnx", "scipy", "trackeval", "matplotlib"}
+
+
+def test_a_run_without_a_terminal_imports_no_progress_bar(tmp_path: Path) -> None:
+    seq = shared_path("data", "TUD-Stadtmitte")
+    out = tmp_path / "t.txt"
+    args = ["run", str(seq), "--frames", "1:5", "--out", str(out)]
+    run = f"from densepeds.cli import main\nmain({args!r})"
+    modules = _imported(run, dict(os.environ))
+    assert out.stat().st_size > 0 and "densepeds" in modules
+    assert not modules & {"tqdm", "onnx", "multiprocessing"}

@@ -380,17 +380,24 @@ def _add_quantize_parser(act: Any) -> None:
 # --- run -------------------------------------------------------------------------------------
 
 
+class _NoProgress:
+    """The progress bar where none is shown (quiet, or stderr not a terminal): tqdm and the
+    lock it creates are not even imported."""
+
+    def update(self, n: int = 1) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
 def _progress(total: int | None, quiet: bool, desc: str) -> Any:
+    if quiet or not sys.stderr.isatty():
+        return _NoProgress()
     from tqdm import tqdm
 
     return tqdm(
-        total=total,
-        desc=desc,
-        unit="frame",
-        file=sys.stderr,
-        leave=False,
-        disable=quiet or not sys.stderr.isatty(),
-        dynamic_ncols=True,
+        total=total, desc=desc, unit="frame", file=sys.stderr, leave=False, dynamic_ncols=True
     )
 
 

@@ -19,10 +19,11 @@ import contextlib
 import hashlib
 import os
 import platform
+from collections.abc import Iterator
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import onnxruntime as ort
@@ -289,50 +290,70 @@ def batched_session(
     return make_session(model, threads, save_optimised=target), rewritten
 
 
-_METADATA_CLASS: list[Any] = []
+METADATA_FIELD = (
+    14  # onnx.ModelProto.metadata_props: repeated StringStringEntryProto (1 key, 2 value)
+)
 
 
 def model_metadata(path: Path) -> dict[str, str]:
     """An ONNX file's metadata properties, read without parsing its graph or importing onnx.
 
-    The file is parsed as a message holding only ModelProto's ``metadata_props`` (field 14,
-    key/value string pairs); protobuf skips every other field.
+    Only the file's top-level protobuf fields are walked (the graph is skipped by its length);
+    ``metadata_props`` entries are decoded. tests/test_ort_cache.py checks it against onnx.
     """
-    from google.protobuf.message import DecodeError
-
-    if not _METADATA_CLASS:
-        _METADATA_CLASS.append(_metadata_message())
-    message = _METADATA_CLASS[0]()
     try:
-        message.ParseFromString(path.read_bytes())
-    except (OSError, DecodeError) as exc:
+        data = memoryview(path.read_bytes())
+        if not data:
+            raise ValueError("empty file")
+        out: dict[str, str] = {}
+        for number, value in _fields(data):
+            if number == METADATA_FIELD and isinstance(value, memoryview):
+                entry = dict(_fields(value))
+                key, text = entry.get(1, b""), entry.get(2, b"")
+                if not isinstance(key, memoryview | bytes) or not isinstance(
+                    text, memoryview | bytes
+                ):
+                    raise ValueError("a metadata entry is not a pair of strings")
+                out[bytes(key).decode()] = bytes(text).decode()
+        return out
+    except (OSError, ValueError, IndexError) as exc:  # UnicodeDecodeError is a ValueError
         raise ModelError(f"{path} is not a readable ONNX model: {exc}") from exc
-    return {entry.key: entry.value for entry in message.metadata_props}
 
 
-def _metadata_message() -> Any:
-    from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
+def _fields(data: memoryview) -> Iterator[tuple[int, int | memoryview]]:
+    """(field number, varint or length-delimited bytes) of one protobuf message's fields."""
+    pos, end = 0, len(data)
+    while pos < end:
+        tag, pos = _varint(data, pos)
+        number, wire = tag >> 3, tag & 7
+        if wire == 0:
+            value, pos = _varint(data, pos)
+            yield number, value
+        elif wire == 2:
+            size, pos = _varint(data, pos)
+            if pos + size > end:
+                raise ValueError("truncated field")
+            yield number, data[pos : pos + size]
+            pos += size
+        elif wire in (1, 5):  # fixed 64 / 32 bits
+            pos += 8 if wire == 1 else 4
+        else:
+            raise ValueError(f"field {number} has wire type {wire}, not used by ONNX")
+    if pos != end:
+        raise ValueError("truncated message")
 
-    proto = descriptor_pb2.FileDescriptorProto(
-        name="densepeds_onnx_metadata.proto", package="densepeds_onnx_metadata", syntax="proto2"
-    )
-    entry = proto.message_type.add(name="Entry")
-    for number, name in ((1, "key"), (2, "value")):
-        entry.field.add(name=name, number=number, type=9, label=1)  # optional string
-    model = proto.message_type.add(name="Model")
-    model.field.add(
-        name="metadata_props",
-        number=14,  # onnx.ModelProto.metadata_props
-        type=11,  # message
-        label=3,  # repeated
-        type_name=".densepeds_onnx_metadata.Entry",
-    )
-    pool = descriptor_pool.DescriptorPool()
-    pool.Add(proto)
-    descriptor = pool.FindMessageTypeByName("densepeds_onnx_metadata.Model")
-    if hasattr(message_factory, "GetMessageClass"):  # protobuf >= 4.21
-        return message_factory.GetMessageClass(descriptor)
-    return message_factory.MessageFactory(pool).GetPrototype(descriptor)
+
+def _varint(data: memoryview, pos: int) -> tuple[int, int]:
+    result = shift = 0
+    while True:
+        byte = data[pos]
+        pos += 1
+        result |= (byte & 0x7F) << shift
+        if byte < 0x80:
+            return result, pos
+        shift += 7
+        if shift > 63:
+            raise ValueError("malformed varint")
 
 
 def as_float32(array: np.ndarray) -> np.ndarray:
