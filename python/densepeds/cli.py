@@ -147,6 +147,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     run.add_argument("--reid-model", metavar="PATH", help=REID_MODEL_HELP)
     run.add_argument(
+        "--reid-reuse",
+        action="store_true",
+        help="a detection that plainly continues one of the previous frame's (it alone overlaps "
+        "it, with the same colours) keeps that re-ID embedding, for up to 4 frames in a row, "
+        "instead of a new one (densepeds.reid.ReusePolicy): less re-ID work, the tracks may "
+        "change",
+    )
+    run.add_argument(
         "--motion",
         choices=MOTIONS,
         default="frvo",
@@ -625,6 +633,11 @@ def open_run(args: argparse.Namespace, models: Any = None) -> tuple[Any, Any, An
         for key, value in (("tiles", tiles), ("full_scan_every", full_scan_every))
         if value is not None
     }
+    reid_reuse = getattr(args, "reid_reuse", False)
+    if reid_reuse and features == "none":
+        raise ParameterError(
+            "--reid-reuse keeps re-ID embeddings, and this run computes none (--features none)"
+        )
     # Read the det file and load the models before tracking, so that mistakes surface at once.
     dets: Any = read_detections(args.detections) if args.detections else None
     detector_spec: Any = detector
@@ -634,6 +647,10 @@ def open_run(args: argparse.Namespace, models: Any = None) -> tuple[Any, Any, An
             detector_spec = models.detector(detector, args.detector_model)
         if features != "none":
             reid_spec = models.reid(args.reid_model)
+    elif reid_reuse:
+        from densepeds.reid import ReID
+
+        reid_spec = ReID(args.reid_model, reuse=True)
     # The preset follows the detector asked for, also when a batch hands over a loaded one.
     preset = args.preset if args.preset is not None else preset_for(detector).name
     pipe = Pipeline(
