@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import cv2
@@ -375,7 +376,9 @@ def test_reid_quality_matches_brute_force() -> None:
         assert 0 < wrong < 1 and 0 < auc < 1
 
 
-def test_run_reid_reuse_flag_reaches_the_reid(tmp_path: Path) -> None:
+def test_run_reid_reuse_flag_reaches_the_reid(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     from densepeds.cli import build_parser, main, open_run
 
     video = str(shared_path("data", "PETS09-S2L1-dev", "vtest.avi"))
@@ -388,5 +391,7 @@ def test_run_reid_reuse_flag_reaches_the_reid(tmp_path: Path) -> None:
     args = build_parser().parse_args([*base, "--reid-reuse", "--features", "none"])
     with pytest.raises(ParameterError, match="--reid-reuse"):
         open_run(args)
-    assert main([*base, "--reid-reuse", "--quiet"]) == 0
+    assert main([*base, "--reid-reuse"]) == 0
     assert (tmp_path / "t.txt").stat().st_size > 0
+    said = re.search(r"re-ID: (\d+) of (\d+) embeddings reused", capsys.readouterr().out)
+    assert said is not None and int(said[2]) > 0

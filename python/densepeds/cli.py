@@ -552,8 +552,18 @@ def _summary(name: str, frames: int, n_ids: int, out: Path, pipe: Any, video: Pa
     extra = f" and {video}" if video else ""
     return (
         f"{name}: {frames} frames, {n_ids} tracks (preset {pipe.preset.name}) -> {out}{extra}; "
-        f"{_speed(t)}{_int8_note(pipe)}"
+        f"{_speed(t)}{_int8_note(pipe)}{_reuse_note(pipe)}"
     )
+
+
+def _reuse_note(pipe: Any) -> str:
+    """How many embeddings --reid-reuse kept from the previous frame instead of computing."""
+    if pipe.features == "none" or pipe.times.seconds.get("reid", 0) <= 0:
+        return ""
+    reid = pipe.reid()
+    if getattr(reid, "reuse", None) is None:
+        return ""
+    return f"; re-ID: {reid.reused} of {reid.reused + reid.embedded} embeddings reused"
 
 
 def _int8_note(pipe: Any) -> str:
