@@ -5,17 +5,19 @@
         [--profile] [--reuse] [--memory] [--write benchmarks/results/speed.md]
 
 For each sequence, each repeat runs both as separate processes (niced, ``--nice``), model
-loading included, alternating which goes first: ours (`python -m densepeds run SEQ --detector
-yoloseg --frames A:B`, the package defaults) and `benchmarks/reference_pipeline.py` (the
-straightforward pipeline, on the tiles ours picks for the frame size). onnxruntime gets
-``--threads`` intra-op threads in both (by CPU affinity for ours: the command is started under
-``taskset`` with that many CPUs when the machine has more; else it is the machine's count).
+loading included (after one untimed 1-frame run of each, which fills onnxruntime's cache of
+optimised graphs as a user's first start does), alternating which goes first: ours (`python -m
+densepeds run SEQ --detector yoloseg --frames A:B`, the package defaults) and
+`benchmarks/reference_pipeline.py` (the straightforward pipeline, on the tiles ours picks for the
+frame size). onnxruntime gets ``--threads`` intra-op threads in both (by CPU affinity for ours:
+the command is started under ``taskset`` with that many CPUs when the machine has more; else it
+is the machine's count).
 Prints each run's wall and CPU seconds, per-stage ms/frame and the load average, then the
 medians, re-ID's share of our frame and the ratio reference / ours. ``--profile`` adds an
 in-process pass of our pipeline that splits detection into preprocessing, inference, box
-decoding and masks. ``--reuse`` adds a third process: `densepeds run` with re-ID reuse switched
-on (``ReID(reuse=True)``, which the pipeline does not do by default; see
-densepeds.reid.ReusePolicy). ``--int8 FILE`` adds `densepeds run --detector-model FILE`, the
+decoding and masks. ``--reuse`` adds `densepeds run --reid-reuse` (re-ID reuse, off by default;
+see densepeds.reid.ReusePolicy): in the fastest setting timed (``--skip K``'s) where there is one,
+else at the defaults. ``--int8 FILE`` adds `densepeds run --detector-model FILE`, the
 detector's int8 copy made by `densepeds models quantize` (densepeds.quantize), on the default
 tiles and on the grid; ``--skip K`` adds the int8 copy on the grid with a full scan every K-th
 frame only (`densepeds run --full-scan-every K`). ``--only NAME...`` times only those pipelines
@@ -43,23 +45,7 @@ SHARED = Path(os.environ.get("DENSEPEDS_SHARED", REPO.parent / "shared"))
 # The shared models by bare name (an explicit DENSEPEDS_MODEL_DIR from the environment wins).
 os.environ.setdefault("DENSEPEDS_MODEL_DIR", str(SHARED / "models"))
 STAGE_RE = re.compile(r"([a-z]+) ([0-9.]+)")
-REUSE_CHILD = "--child-run-with-reuse"
 DETECTOR_INPUT = 320  # the shared segmenter's input size, which sets the automatic tiles
-
-
-def _run_with_reuse(argv: list[str]) -> int:
-    """`densepeds run ARGV` with every ReID built with reuse on (the pipeline's opt-in)."""
-    from densepeds import reid
-    from densepeds.cli import main as cli_main
-
-    plain_init = reid.ReID.__init__
-
-    def init(self: reid.ReID, *args: object, **kwargs: object) -> None:
-        kwargs.setdefault("reuse", True)
-        plain_init(self, *args, **kwargs)  # type: ignore[arg-type]
-
-    reid.ReID.__init__ = init  # type: ignore[method-assign]
-    return cli_main(["run", *argv])
 
 
 def _cpu_prefix(threads: int) -> list[str]:
@@ -167,15 +153,7 @@ def compare(
             *("--threads", str(args.threads), "--features", features, "--tiles", tiles),
         ],
         "ours on the grid": [*run, "--tiles", tiles, "--out", f"{tmp}/grid.txt"],
-        "ours+reuse": [
-            *nice,
-            *pin,
-            sys.executable,
-            __file__,
-            REUSE_CHILD,
-            str(seq_dir),
-            *("--detector", "yoloseg", "--frames", frames, "--out", f"{tmp}/reuse.txt", "-q"),
-        ],
+        "ours+reuse": [*run, "--reid-reuse", "--out", f"{tmp}/reuse.txt"],
     }
     if args.int8 is not None:
         int8 = ["--detector-model", str(args.int8.resolve()), "--out", f"{tmp}/int8.txt"]
@@ -185,6 +163,8 @@ def compare(
         if args.skip:
             skip = ["--full-scan-every", str(args.skip), "--out", f"{tmp}/int8-skip.txt"]
             cmds[skip_name(args.skip)] = [*run, *grid_int8, *skip]
+            reuse = ["--full-scan-every", str(args.skip), "--reid-reuse"]
+            cmds[reuse_name(args.skip)] = [*run, *grid_int8, *reuse, "--out", f"{tmp}/reuse.txt"]
     # `densepeds run` ends with "... N frames/s for the whole pipeline; timed: ... ms/frame)".
     markers = {name: "frames/s" for name in cmds} | {"reference": "reference:"}
     runs: dict[str, list[Run]] = {name: [] for name in names}
@@ -200,6 +180,14 @@ def compare(
         lines.append(line)
 
     say(f"load average before: {_load()}")
+    # Each pipeline once on one frame, untimed: onnxruntime's optimised graphs are then cached
+    # (densepeds.detect.onnxutil), as every start but a user's first finds them.
+    first = frames.split(":")[0]
+    for name in names:
+        cmd = cmds[name]
+        if "--frames" in cmd:
+            at = cmd.index("--frames") + 1
+            run_once([*cmd[:at], f"{first}:{first}", *cmd[at + 1 :]], markers[name])
     for rep in range(args.repeats):
         order = names if rep % 2 == 0 else names[::-1]
         for name in order:
@@ -250,6 +238,10 @@ def compare(
 
 def skip_name(every: int) -> str:
     return f"ours+int8 on the grid, full scan every {every}"
+
+
+def reuse_name(every: int | None) -> str:
+    return f"{skip_name(every)}, re-ID reuse" if every else "ours+reuse"
 
 
 def _cpu_name() -> str:
@@ -311,12 +303,14 @@ def main() -> int:
     seqs, ranges = args.seq.split(","), args.frames.split(",")
     if len(ranges) != len(seqs):
         raise SystemExit(f"give one frame range per sequence: {len(seqs)} vs {len(ranges)}")
-    names = ["reference", "ours", "ours on the grid", *(["ours+reuse"] if args.reuse else [])]
+    names = ["reference", "ours", "ours on the grid"]
+    names += ["ours+reuse"] if args.reuse and not args.skip else []
     names += ["ours+int8", "ours+int8 on the grid"] if args.int8 is not None else []
     if args.skip:
         if args.int8 is None or args.skip < 1:
             raise SystemExit("--skip K needs --int8 FILE and K >= 1")
         names.append(skip_name(args.skip))
+        names += [reuse_name(args.skip)] if args.reuse else []
     if args.only:
         names = ["reference", *(n for n in names[1:] if n in args.only)]
     command = "OPENBLAS_NUM_THREADS=1 python benchmarks/pipeline_speed.py " + " ".join(sys.argv[1:])
@@ -348,6 +342,4 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    if len(sys.argv) > 1 and sys.argv[1] == REUSE_CHILD:
-        sys.exit(_run_with_reuse(sys.argv[2:]))
     sys.exit(main())

@@ -192,7 +192,10 @@ def _load_dets(path: Path) -> list[Any]:
 
 
 # Embedding variants: a kind is a feature kind of densepeds.segment.FEATURES, optionally followed
-# by ``+flip`` (ReID(flip=True)) and/or ``+ctxF`` (ReID(context=F)), e.g. ``segmented+flip``.
+# by ``+flip`` (ReID(flip=True)), ``+ctxF`` (ReID(context=F)) and/or ``+reuse`` (ReID(reuse=True):
+# embedded frame by frame, a detection that plainly continues one of the previous frame's keeps
+# its embedding; ``+reuse,KEY=VALUE,...`` sets densepeds.reid.ReusePolicy's fields), e.g.
+# ``segmented+flip``, ``segmented+reuse``, ``segmented+reuse,max_thumb_diff=15``.
 def kind_options(kind: str) -> tuple[str, dict[str, Any]]:
     """(feature kind, ReID options) of a cached embedding kind."""
     features, *extras = kind.split("+")
@@ -202,6 +205,13 @@ def kind_options(kind: str) -> tuple[str, dict[str, Any]]:
             options["flip"] = True
         elif extra.startswith("ctx"):
             options["context"] = float(extra[3:])
+        elif extra.split(",")[0] == "reuse":
+            from densepeds.reid import ReusePolicy
+
+            fields = dict(item.split("=", 1) for item in extra.split(",")[1:])
+            options["reuse"] = ReusePolicy(
+                **{k: int(v) if v.isdigit() else float(v) for k, v in fields.items()}
+            )
         else:
             raise ValueError(f"embedding kind {kind!r}: unknown variant {extra!r}")
     return features, options
@@ -264,8 +274,12 @@ def load_video(
             np.savez(tmp, emb=np.concatenate(rows), counts=[len(r) for r in rows])
             os.replace(tmp, emb_file)
             if not quiet:
+                reused = ""
+                if isinstance(reid, ReID) and reid.reuse is not None:
+                    reused = f", {reid.reused} of {reid.reused + reid.embedded} reused"
                 print(
-                    f"{seq}: embedded ({kind}) in {time.perf_counter() - t0:.0f} s", file=sys.stderr
+                    f"{seq}: embedded ({kind}) in {time.perf_counter() - t0:.0f} s{reused}",
+                    file=sys.stderr,
                 )
         z = np.load(emb_file)
         embeddings[kind] = np.split(z["emb"], np.cumsum(z["counts"])[:-1])

@@ -28,3 +28,10 @@ def shared() -> Path:
 # cache: point it at the shared models (an explicit DENSEPEDS_MODEL_DIR from the environment wins).
 if (SHARED / "models").is_dir():
     os.environ.setdefault("DENSEPEDS_MODEL_DIR", str(SHARED / "models"))
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _ort_cache(tmp_path_factory: pytest.TempPathFactory) -> None:
+    """Optimised onnxruntime graphs go to a temporary folder, not the user cache (an explicit
+    DENSEPEDS_ORT_CACHE from the environment wins)."""
+    os.environ.setdefault("DENSEPEDS_ORT_CACHE", str(tmp_path_factory.mktemp("ort-cache")))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import cv2
@@ -373,3 +374,24 @@ def test_reid_quality_matches_brute_force() -> None:
         assert got.auc == pytest.approx(auc, abs=1e-12)
         assert got.wrong == pytest.approx(wrong) and got.wrong_gallery == pytest.approx(wrong_gal)
         assert 0 < wrong < 1 and 0 < auc < 1
+
+
+def test_run_reid_reuse_flag_reaches_the_reid(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from densepeds.cli import build_parser, main, open_run
+
+    video = str(shared_path("data", "PETS09-S2L1-dev", "vtest.avi"))
+    base = ["run", video, "--frames", "1:3", "--tiles", "1x1", "--out", str(tmp_path / "t.txt")]
+    for extra, reuse in (([], False), (["--reid-reuse"], True)):
+        args = build_parser().parse_args([*base, *extra])
+        _, pipe, *_ = open_run(args)
+        reid = pipe.reid()
+        assert isinstance(reid, ReID) and (reid.reuse is not None) == reuse
+    args = build_parser().parse_args([*base, "--reid-reuse", "--features", "none"])
+    with pytest.raises(ParameterError, match="--reid-reuse"):
+        open_run(args)
+    assert main([*base, "--reid-reuse"]) == 0
+    assert (tmp_path / "t.txt").stat().st_size > 0
+    said = re.search(r"re-ID: (\d+) of (\d+) embeddings reused", capsys.readouterr().out)
+    assert said is not None and int(said[2]) > 0

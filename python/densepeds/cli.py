@@ -147,6 +147,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     run.add_argument("--reid-model", metavar="PATH", help=REID_MODEL_HELP)
     run.add_argument(
+        "--reid-reuse",
+        action="store_true",
+        help="a detection that plainly continues one of the previous frame's (it alone overlaps "
+        "it, with the same colours) keeps that re-ID embedding, for up to 4 frames in a row, "
+        "instead of a new one (densepeds.reid.ReusePolicy): less re-ID work, the tracks may "
+        "change",
+    )
+    run.add_argument(
         "--motion",
         choices=MOTIONS,
         default="frvo",
@@ -380,17 +388,24 @@ def _add_quantize_parser(act: Any) -> None:
 # --- run -------------------------------------------------------------------------------------
 
 
+class _NoProgress:
+    """The progress bar where none is shown (quiet, or stderr not a terminal): tqdm and the
+    lock it creates are not even imported."""
+
+    def update(self, n: int = 1) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
 def _progress(total: int | None, quiet: bool, desc: str) -> Any:
+    if quiet or not sys.stderr.isatty():
+        return _NoProgress()
     from tqdm import tqdm
 
     return tqdm(
-        total=total,
-        desc=desc,
-        unit="frame",
-        file=sys.stderr,
-        leave=False,
-        disable=quiet or not sys.stderr.isatty(),
-        dynamic_ncols=True,
+        total=total, desc=desc, unit="frame", file=sys.stderr, leave=False, dynamic_ncols=True
     )
 
 
@@ -537,8 +552,18 @@ def _summary(name: str, frames: int, n_ids: int, out: Path, pipe: Any, video: Pa
     extra = f" and {video}" if video else ""
     return (
         f"{name}: {frames} frames, {n_ids} tracks (preset {pipe.preset.name}) -> {out}{extra}; "
-        f"{_speed(t)}{_int8_note(pipe)}"
+        f"{_speed(t)}{_int8_note(pipe)}{_reuse_note(pipe)}"
     )
+
+
+def _reuse_note(pipe: Any) -> str:
+    """How many embeddings --reid-reuse kept from the previous frame instead of computing."""
+    if pipe.features == "none" or pipe.times.seconds.get("reid", 0) <= 0:
+        return ""
+    reid = pipe.reid()
+    if getattr(reid, "reuse", None) is None:
+        return ""
+    return f"; re-ID: {reid.reused} of {reid.reused + reid.embedded} embeddings reused"
 
 
 def _int8_note(pipe: Any) -> str:
@@ -618,6 +643,11 @@ def open_run(args: argparse.Namespace, models: Any = None) -> tuple[Any, Any, An
         for key, value in (("tiles", tiles), ("full_scan_every", full_scan_every))
         if value is not None
     }
+    reid_reuse = getattr(args, "reid_reuse", False)
+    if reid_reuse and features == "none":
+        raise ParameterError(
+            "--reid-reuse keeps re-ID embeddings, and this run computes none (--features none)"
+        )
     # Read the det file and load the models before tracking, so that mistakes surface at once.
     dets: Any = read_detections(args.detections) if args.detections else None
     detector_spec: Any = detector
@@ -627,6 +657,10 @@ def open_run(args: argparse.Namespace, models: Any = None) -> tuple[Any, Any, An
             detector_spec = models.detector(detector, args.detector_model)
         if features != "none":
             reid_spec = models.reid(args.reid_model)
+    elif reid_reuse:
+        from densepeds.reid import ReID
+
+        reid_spec = ReID(args.reid_model, reuse=True)
     # The preset follows the detector asked for, also when a batch hands over a loaded one.
     preset = args.preset if args.preset is not None else preset_for(detector).name
     pipe = Pipeline(

@@ -2,20 +2,36 @@
 
 Batching all tiles (or all crops) into one call saves the per-call overhead and lets onnxruntime
 parallelise over the batch; a model exported with batch fixed to 1 is rewritten once, in memory.
+
+:func:`batched_session` keeps the graph onnxruntime makes of each model (rewritten and
+optimised for this CPU) in an on-disk cache, ``$DENSEPEDS_ORT_CACHE`` (default
+``$XDG_CACHE_HOME/densepeds/ort``, ``off`` for none), so that later starts load it as it is
+instead of loading, rewriting and optimising the model again; a cached file is named by the
+model file's sha256, the rewriting asked for, this module's code, the onnxruntime version, the
+thread count and the CPU, so that a change of any of them makes a new one. Its outputs are
+bitwise those of a session made from the model (tests/test_ort_cache.py). ``onnx`` itself is
+imported only where a model is rewritten.
 """
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
 import os
+import platform
+from collections.abc import Iterator
 from dataclasses import dataclass
+from functools import cache
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import onnx
 import onnxruntime as ort
-from onnx import numpy_helper
 
 from densepeds.errors import ModelError, ParameterError
+
+if TYPE_CHECKING:
+    import onnx
 
 BATCH_DIM = "batch"
 
@@ -28,6 +44,8 @@ class TensorSpec:
 
 
 def load_model(path: Path) -> onnx.ModelProto:
+    import onnx
+
     try:
         return onnx.load(str(path))
     except Exception as exc:  # onnx raises several unrelated types for a corrupt file
@@ -57,17 +75,112 @@ def session_options(threads: int | None) -> ort.SessionOptions:
     return opts
 
 
-def make_session(model: onnx.ModelProto | Path, threads: int | None) -> ort.InferenceSession:
-    data = model.SerializeToString() if isinstance(model, onnx.ModelProto) else str(model)
+def make_session(
+    model: onnx.ModelProto | Path, threads: int | None, *, save_optimised: Path | None = None
+) -> ort.InferenceSession:
+    """A CPU session for ``model``; ``save_optimised`` also writes onnxruntime's optimised graph
+    there (atomically; where it cannot be written the session is made without it)."""
+    data = str(model) if isinstance(model, Path) else model.SerializeToString()
     # The shipped int8 export makes onnxruntime's default logger warn about a deprecated
     # attribute at every load; that is noise to a user, so only errors are logged.
     ort.set_default_logger_severity(3)
+    options = session_options(threads)
+    if save_optimised is not None:
+        session = _session_saving(data, options, save_optimised)
+        if session is not None:
+            return session
+        options = session_options(threads)
     try:
-        return ort.InferenceSession(
-            data, sess_options=session_options(threads), providers=["CPUExecutionProvider"]
-        )
+        return ort.InferenceSession(data, sess_options=options, providers=["CPUExecutionProvider"])
     except Exception as exc:
         raise ModelError(f"onnxruntime cannot load the model: {exc}") from exc
+
+
+def _session_saving(
+    data: str | bytes, options: ort.SessionOptions, target: Path
+) -> ort.InferenceSession | None:
+    """A session that writes its optimised graph to ``target``; None where that fails."""
+    tmp = target.with_name(f".{target.name}.{os.getpid()}.tmp")
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        options.optimized_model_filepath = str(tmp)
+        session = ort.InferenceSession(
+            data, sess_options=options, providers=["CPUExecutionProvider"]
+        )
+        os.replace(tmp, target)
+        return session
+    except Exception:  # an unwritable cache only costs the next start its optimisation
+        with contextlib.suppress(OSError):
+            tmp.unlink(missing_ok=True)
+        return None
+
+
+ORT_CACHE_ENV = "DENSEPEDS_ORT_CACHE"
+REWRITTEN_KEY = "densepeds.rewritten_for_batch"  # metadata of a cached graph: batch made dynamic
+
+
+def ort_cache_dir() -> Path | None:
+    """Where optimised graphs are cached (``$DENSEPEDS_ORT_CACHE``, ``off``: nowhere)."""
+    value = os.environ.get(ORT_CACHE_ENV)
+    if value is not None:
+        return None if value.strip().lower() in ("", "off", "0") else Path(value).expanduser()
+    from densepeds.modelfiles import cache_dir
+
+    return cache_dir().parent / "ort"
+
+
+@cache
+def _cpu_identity() -> str:
+    """The CPU model and instruction sets (the optimised graph may use this CPU's layouts)."""
+    fields = {}
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as f:
+            for line in f:
+                key, _, value = line.partition(":")
+                key = key.strip()
+                if key in ("model name", "flags", "Features", "CPU part") and key not in fields:
+                    fields[key] = value.strip()
+                if not line.strip() and fields:
+                    break
+    except OSError:
+        pass
+    return f"{platform.machine()} {platform.processor()} {sorted(fields.items())}"
+
+
+def optimised_file(path: Path, recipe: str, threads: int | None) -> Path | None:
+    """The cache file of ``path``'s optimised graph made with ``recipe`` (the rewriting asked
+    for) and ``threads``; None when caching is off."""
+    folder = ort_cache_dir()
+    if folder is None:
+        return None
+    from densepeds.modelfiles import sha256_of
+
+    digest = hashlib.sha256()
+    for part in (
+        sha256_of(path),
+        recipe,
+        hashlib.sha256(Path(__file__).read_bytes()).hexdigest(),  # the rewriting code
+        ort.__version__,
+        str(session_options(threads).intra_op_num_threads),
+        _cpu_identity(),
+    ):
+        digest.update(part.encode() + b"\0")
+    return folder / f"{path.stem}-{digest.hexdigest()[:24]}.onnx"
+
+
+def _cached_session(file: Path, threads: int | None) -> ort.InferenceSession | None:
+    """A session of an optimised graph from the cache, run as it is; None where unusable."""
+    if not file.is_file():
+        return None
+    ort.set_default_logger_severity(3)
+    options = session_options(threads)
+    options.graph_optimization_level = ort.GraphOptimizationLevel.ORT_DISABLE_ALL
+    try:
+        return ort.InferenceSession(
+            str(file), sess_options=options, providers=["CPUExecutionProvider"]
+        )
+    except Exception:  # a damaged file (e.g. a full disk): made again
+        return None
 
 
 def specs(values: list[ort.NodeArg]) -> list[TensorSpec]:
@@ -87,6 +200,9 @@ def with_dynamic_batch(model: onnx.ModelProto) -> onnx.ModelProto:
     ("copy the input's dim"), so batch N flows through. Callers must check the copy against the
     original (tests do, on the shipped models).
     """
+    import onnx
+    from onnx import numpy_helper
+
     out = onnx.ModelProto()
     out.CopyFrom(model)
     graph = out.graph
@@ -124,6 +240,8 @@ def with_input_size(model: onnx.ModelProto, height: int, width: int) -> onnx.Mod
     Only for fully convolutional graphs (sizes flow from the input: no constant spatial shape
     inside); onnxruntime rejects the copy at load time otherwise.
     """
+    import onnx
+
     out = onnx.ModelProto()
     out.CopyFrom(model)
     dims = out.graph.input[0].type.tensor_type.shape.dim
@@ -150,15 +268,92 @@ def batched_session(
     ``dequantize`` runs a float copy of a QDQ-quantised model (see :func:`dequantized`);
     ``input_size`` (height, width) resizes an NCHW model's input (see :func:`with_input_size`).
     """
+    recipe = f"batched dequantize={dequantize} input_size={input_size}"
+    target = optimised_file(path, recipe, threads)
+    if target is not None:
+        session = _cached_session(target, threads)
+        if session is not None:
+            meta = session.get_modelmeta().custom_metadata_map
+            return session, meta.get(REWRITTEN_KEY) == "1"
     model = load_model(path)
     if dequantize:
         model = dequantized(model)
     if input_size is not None:
         model = with_input_size(model, *input_size)
-        return make_session(with_dynamic_batch(model), threads), True
-    if not has_fixed_batch(model):
-        return make_session(model, threads), False
-    return make_session(with_dynamic_batch(model), threads), True
+    rewritten = input_size is not None or has_fixed_batch(model)
+    if rewritten:
+        model = with_dynamic_batch(model)
+    if target is None:
+        return make_session(model if rewritten else path, threads), rewritten
+    entry = model.metadata_props.add()
+    entry.key, entry.value = REWRITTEN_KEY, str(int(rewritten))
+    return make_session(model, threads, save_optimised=target), rewritten
+
+
+METADATA_FIELD = (
+    14  # onnx.ModelProto.metadata_props: repeated StringStringEntryProto (1 key, 2 value)
+)
+
+
+def model_metadata(path: Path) -> dict[str, str]:
+    """An ONNX file's metadata properties, read without parsing its graph or importing onnx.
+
+    Only the file's top-level protobuf fields are walked (the graph is skipped by its length);
+    ``metadata_props`` entries are decoded. tests/test_ort_cache.py checks it against onnx.
+    """
+    try:
+        data = memoryview(path.read_bytes())
+        if not data:
+            raise ValueError("empty file")
+        out: dict[str, str] = {}
+        for number, value in _fields(data):
+            if number == METADATA_FIELD and isinstance(value, memoryview):
+                entry = dict(_fields(value))
+                key, text = entry.get(1, b""), entry.get(2, b"")
+                if not isinstance(key, memoryview | bytes) or not isinstance(
+                    text, memoryview | bytes
+                ):
+                    raise ValueError("a metadata entry is not a pair of strings")
+                out[bytes(key).decode()] = bytes(text).decode()
+        return out
+    except (OSError, ValueError, IndexError) as exc:  # UnicodeDecodeError is a ValueError
+        raise ModelError(f"{path} is not a readable ONNX model: {exc}") from exc
+
+
+def _fields(data: memoryview) -> Iterator[tuple[int, int | memoryview]]:
+    """(field number, varint or length-delimited bytes) of one protobuf message's fields."""
+    pos, end = 0, len(data)
+    while pos < end:
+        tag, pos = _varint(data, pos)
+        number, wire = tag >> 3, tag & 7
+        if wire == 0:
+            value, pos = _varint(data, pos)
+            yield number, value
+        elif wire == 2:
+            size, pos = _varint(data, pos)
+            if pos + size > end:
+                raise ValueError("truncated field")
+            yield number, data[pos : pos + size]
+            pos += size
+        elif wire in (1, 5):  # fixed 64 / 32 bits
+            pos += 8 if wire == 1 else 4
+        else:
+            raise ValueError(f"field {number} has wire type {wire}, not used by ONNX")
+    if pos != end:
+        raise ValueError("truncated message")
+
+
+def _varint(data: memoryview, pos: int) -> tuple[int, int]:
+    result = shift = 0
+    while True:
+        byte = data[pos]
+        pos += 1
+        result |= (byte & 0x7F) << shift
+        if byte < 0x80:
+            return result, pos
+        shift += 7
+        if shift > 63:
+            raise ValueError("malformed varint")
 
 
 def as_float32(array: np.ndarray) -> np.ndarray:
@@ -175,6 +370,9 @@ def with_weighted_final_pool(model: onnx.ModelProto) -> tuple[onnx.ModelProto, t
     the embedding average the person's cells more than the background's ("mask-weighted
     pooling"), instead of repainting pixels. Raises ModelError when the model has no such pool.
     """
+    import onnx
+    from onnx import numpy_helper
+
     pools = [i for i, n in enumerate(model.graph.node) if n.op_type == "GlobalAveragePool"]
     if not pools:
         raise ModelError("mask-weighted pooling needs a model ending in GlobalAveragePool")
@@ -220,6 +418,8 @@ def dequantized(model: onnx.ModelProto) -> onnx.ModelProto:
     same convolutions run about twice as fast. Outputs differ (no activation rounding): check
     accuracy before relying on it (models/README.md has the figures).
     """
+    import onnx
+
     out = onnx.ModelProto()
     out.CopyFrom(model)
     graph = out.graph
@@ -262,6 +462,8 @@ def dequantized(model: onnx.ModelProto) -> onnx.ModelProto:
 
 def _fold_dequantize(node: onnx.NodeProto, inits: dict[str, onnx.TensorProto]) -> onnx.TensorProto:
     """(q - zero_point) * scale of a constant DequantizeLinear, per-tensor or per-axis."""
+    from onnx import numpy_helper
+
     q = numpy_helper.to_array(inits[node.input[0]]).astype(np.float32)
     scale = numpy_helper.to_array(inits[node.input[1]]).astype(np.float32)
     has_zp = len(node.input) > 2 and node.input[2]
