@@ -200,6 +200,24 @@ motion_person_height    float  160.0       [0, inf)             the motion model
                                                                 reference row) is this, so one
                                                                 setting means the same on every
                                                                 image scale (0: image pixels)
+tentative_max_age       int    2           0..=4294967295       frames a tentative track (not yet
+                                                                confirmed by n_init matches)
+                                                                survives unmatched; while it waits
+                                                                it is predicted on its own (not a
+                                                                neighbour in the motion model's
+                                                                step) and matched last, by a
+                                                                detection of the second pass (scored
+                                                                in [low_threshold, det_threshold))
+                                                                at low_iou_threshold (a confident
+                                                                detection left over starts its own
+                                                                track; from a detector that
+                                                                thresholds its own output, as
+                                                                thresholded_low_iou reads it, every
+                                                                detection is confident), so a person
+                                                                seen once with confidence and then
+                                                                weakly, a frame or two later, is
+                                                                confirmed (0: a tentative track ends
+                                                                at its first miss)
 neighbor_radius         float  150.0       (0, inf)             motion model: only agents closer
                                                                 than this (pixels) constrain each
                                                                 other

@@ -145,6 +145,11 @@ impl Track {
         centre(&self.predicted)
     }
 
+    /// Whether the track is tentative and missed a frame (kept by `tentative_max_age`).
+    pub fn is_lingering(&self) -> bool {
+        !self.confirmed && self.time_since_update > 0
+    }
+
     /// Whether the track was matched in the previous frame too (called before this frame's
     /// match is applied): its one-frame prediction measures the detector's jitter.
     pub fn is_followed(&self) -> bool {

@@ -10,6 +10,8 @@
 //!    smaller overlap, `thresholded_low_iou`, where the detector thresholds its own output
 //!    and only the quantile floor made them low);
 //! 4. OC-SORT-style recovery of lost tracks by their last observed box;
+//! 5. tentative tracks that missed a frame (`tentative_max_age`): low-score detections at the
+//!    second pass's overlap, after every other track has had its choice;
 //!
 //! then update, age and delete tracks and start new ones. An unmatched confirmed track is
 //! classified from the scene ([`crate::occlusion`]): occluded ones keep being predicted among
@@ -21,7 +23,7 @@ use crate::lap::{Edge, SparseMatcher};
 use crate::lost_report::LostReport;
 use crate::occlusion::{classify, complete, Scene, Unmatched};
 use crate::params::TrackerParams;
-use crate::perspective::Perspective;
+use crate::perspective::{GroundMap, Perspective};
 use crate::predict::predict;
 use crate::score_scale::ScoreScaler;
 use crate::track::Track;
@@ -256,7 +258,7 @@ impl Tracker {
 
         // Predict: all live tracks step together through the motion model.
         let ground = self.perspective.ground().filter(|_| p.ground_plane);
-        predict(&mut self.tracks, self.model.as_mut(), &p, ground.as_ref());
+        self.predict(&p, ground.as_ref());
 
         let high = |j: usize| scores[j] >= p.det_threshold;
         let nt = self.tracks.len();
@@ -268,7 +270,7 @@ impl Tracker {
         // Stage 1: appearance among gated detections.
         if emb.is_some() {
             for (i, t) in self.tracks.iter().enumerate() {
-                if !t.has_gallery() {
+                if !t.has_gallery() || t.is_lingering() {
                     continue;
                 }
                 let c = t.predicted_centre();
@@ -335,7 +337,7 @@ impl Tracker {
             &track_det,
             &det_track,
             &index,
-            &|_| true,
+            &|t| !t.is_lingering(),
             &|t| t.predicted,
             p.iou_threshold,
             &mut edges,
@@ -344,10 +346,10 @@ impl Tracker {
         record(&pairs, &mut track_det, &mut det_track);
 
         // Stage 3: low-score detections for tracks unmatched for at most `low_max_age` frames.
+        let low_index = DetIndex::new(&dets, |j| {
+            p.second_pass && scores[j] >= p.low_threshold && scores[j] < p.det_threshold
+        });
         if p.second_pass {
-            let low_index = DetIndex::new(&dets, |j| {
-                scores[j] >= p.low_threshold && scores[j] < p.det_threshold
-            });
             // From a detector that thresholds its own output (every score seen so far would pass
             // det_threshold and new_track_threshold as given), nothing is low in ByteTrack's
             // sense: what reaches this pass was held back by the quantile floor alone and
@@ -363,7 +365,7 @@ impl Tracker {
                 &track_det,
                 &det_track,
                 &low_index,
-                &|t| t.time_since_update <= p.low_max_age,
+                &|t| !t.is_lingering() && t.time_since_update <= p.low_max_age,
                 &|t| t.predicted,
                 band_iou,
                 &mut edges,
@@ -387,6 +389,27 @@ impl Tracker {
             let pairs = self
                 .matcher
                 .solve(nt, n, &edges, 1.0 - p.recovery_iou_threshold);
+            record(&pairs, &mut track_det, &mut det_track);
+        }
+
+        // Stage 5: tentative tracks that missed a frame take the low-score detections left, at
+        // the second pass's own overlap. A confident detection left over starts a track of its
+        // own instead, as without `tentative_max_age`; from a detector that thresholds its own
+        // output every detection is confident, so there this stage takes none.
+        let scale = &self.scores_seen;
+        let thresholded = scale.lowest() >= scale.confident_cut();
+        if p.tentative_max_age > 0 && p.second_pass && !thresholded {
+            iou_edges(
+                &self.tracks,
+                &track_det,
+                &det_track,
+                &low_index,
+                &|t| t.is_lingering(),
+                &|t| t.predicted,
+                p.low_iou_threshold,
+                &mut edges,
+            );
+            let pairs = self.matcher.solve(nt, n, &edges, 1.0 - p.low_iou_threshold);
             record(&pairs, &mut track_det, &mut det_track);
         }
 
@@ -447,7 +470,14 @@ impl Tracker {
         self.tracks.retain(|t| {
             let keep = match track_det[k] {
                 Some(_) => true,
-                None => !left_image[k] && t.confirmed && t.time_since_update <= p.max_age,
+                None => {
+                    let age = if t.confirmed {
+                        p.max_age
+                    } else {
+                        p.tentative_max_age
+                    };
+                    !left_image[k] && t.time_since_update <= age
+                }
             };
             if !keep && t.confirmed {
                 lost_report[usize::from(t.gap_occluded)].not_refound(t.time_since_update, horizon);
@@ -471,6 +501,24 @@ impl Tracker {
         }
 
         Ok(self.outputs())
+    }
+
+    /// Sets every track's prediction: the crowd steps together through the motion model;
+    /// tentative tracks that missed a frame (`tentative_max_age`) are no part of that step and
+    /// move by their own preferred velocity, so that they do not move their neighbours'
+    /// predictions.
+    fn predict(&mut self, p: &TrackerParams, ground: Option<&GroundMap>) {
+        let mut held: Vec<(usize, Track)> = Vec::new();
+        for i in (0..self.tracks.len()).rev() {
+            if self.tracks[i].is_lingering() {
+                held.push((i, self.tracks.remove(i)));
+            }
+        }
+        predict(&mut self.tracks, self.model.as_mut(), p, ground);
+        for (i, mut t) in held.into_iter().rev() {
+            t.set_prediction(t.pref_vel, 1.0);
+            self.tracks.insert(i, t);
+        }
     }
 
     fn outputs(&self) -> Vec<TrackOutput> {

@@ -64,9 +64,21 @@ fn lost_track_is_recovered_within_max_age_with_same_id() {
 }
 
 #[test]
-fn unmatched_tentative_track_is_dropped() {
-    let mut t = Tracker::new(cv_params()).unwrap();
+fn unmatched_tentative_track_is_dropped_after_tentative_max_age() {
+    let mut t = Tracker::new(TrackerParams {
+        tentative_max_age: 0,
+        ..cv_params()
+    })
+    .unwrap();
     run(&mut t, &[bx(100.0, 100.0)]);
+    run(&mut t, &[]);
+    assert_eq!(t.num_tracks(), 0);
+    let mut t = Tracker::new(cv_params()).unwrap();
+    assert_eq!(t.params().tentative_max_age, 2);
+    run(&mut t, &[bx(100.0, 100.0)]);
+    run(&mut t, &[]);
+    run(&mut t, &[]);
+    assert_eq!(t.num_tracks(), 1);
     run(&mut t, &[]);
     assert_eq!(t.num_tracks(), 0);
 }
