@@ -83,6 +83,10 @@ CANDIDATES: dict[str, dict[str, Any]] = {
     "thresholded_low_iou off": {"thresholded_low_iou": 1.0},
     "thresholded_low_iou 0.25": {"thresholded_low_iou": 0.25},
     "thresholded_low_iou 0.4": {"thresholded_low_iou": 0.4},
+    "coast_aspect_quantile off": {"coast_aspect_quantile": 0.0},
+    "coast_aspect_quantile 0.75": {"coast_aspect_quantile": 0.75},
+    "coast_aspect_quantile 0.9": {"coast_aspect_quantile": 0.9},
+    "coast_aspect_quantile 0.95": {"coast_aspect_quantile": 0.95},
 }
 # What the package defaults were chosen on: update this where a default is tuned again.
 TUNED_ON = {
@@ -94,7 +98,8 @@ TUNED_ON = {
     "`thresholded_low_iou` by the same leave-one-out)",
     "cnn": "the two `/float` videos together (the score reading as above; "
     "`appearance_apart` and `motion_person_height` on all 15 cells by leave-one-out; "
-    "`coast_aspect_state` on the two `/float` videos, checked by leave-one-out)",
+    "`coast_aspect_state` on the two `/float` videos, checked by leave-one-out; "
+    "`coast_aspect_quantile` on the two `/float` videos, checked by leave-one-out)",
 }
 UNTUNED = (
     "every `/frcnn` and `/int8` cell for all but the score reading, `score_quantile_ceiling`, "

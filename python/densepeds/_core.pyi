@@ -104,6 +104,7 @@ class TrackerKwargs(TypedDict, total=False):
     amodal_boxes: bool
     ground_plane: bool
     motion_person_height: float
+    coast_aspect_quantile: float
     neighbor_radius: float
     max_neighbors: int
     time_horizon: float
@@ -164,6 +165,7 @@ class Tracker:
         amodal_boxes: bool = False,
         ground_plane: bool = False,
         motion_person_height: float = 160.0,
+        coast_aspect_quantile: float = 0.0,
         neighbor_radius: float = 150.0,
         max_neighbors: int = 10,
         time_horizon: float = 5.0,

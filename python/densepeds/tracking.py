@@ -200,6 +200,13 @@ motion_person_height    float  160.0       [0, inf)             the motion model
                                                                 reference row) is this, so one
                                                                 setting means the same on every
                                                                 image scale (0: image pixels)
+coast_aspect_quantile   float  0.0         [0, 1]               a lost track's reported box is at
+                                                                least as wide as this quantile of
+                                                                the aspect ratios (width over
+                                                                height) of every track's matched
+                                                                detections (the last 2000) makes its
+                                                                height: the width of a person seen
+                                                                whole in this scene (0: off)
 neighbor_radius         float  150.0       (0, inf)             motion model: only agents closer
                                                                 than this (pixels) constrain each
                                                                 other

@@ -471,6 +471,8 @@ tracker_params! {
             "motion on the ground: the motion model steps feet in ground coordinates from a perspective fitted online (box height vs foot row), boxes scale with depth; image space until a fit holds";
         motion_person_height: f64 = 160.0, closed_open(0.0, f64::INFINITY),
             "the motion model's lengths (neighbor_radius, max_speed, sf_range, sf_strength) are pixels on a person this tall: each frame the crowd is scaled so that the median track box height (on the ground plane: the fitted height at the reference row) is this, so one setting means the same on every image scale (0: image pixels)";
+        coast_aspect_quantile: f64 = 0.0, UNIT,
+            "a lost track's reported box is at least as wide as this quantile of the aspect ratios (width over height) of every track's matched detections (the last 2000) makes its height: the width of a person seen whole in this scene (0: off)";
     }
     motion {
         neighbor_radius: f64, POSITIVE,
@@ -515,7 +517,7 @@ impl TrackerParams {
     /// second_pass=False, recovery=False, size_smoothing=0, position_smoothing=0,
     /// jitter_floor=0, thresholded_low_iou=1, output_lost=0, occluded_output=0,
     /// score_scale="absolute", score_quantile_floor=0, score_quantile_ceiling=0,
-    /// motion_person_height=0, coast_aspect=False`. Other fields keep their defaults.
+    /// motion_person_height=0, coast_aspect=False, coast_aspect_quantile=0`. Other fields keep their defaults.
     pub fn pure() -> Self {
         Self {
             score_scale: ScoreScale::Absolute,
@@ -532,6 +534,7 @@ impl TrackerParams {
             output_lost: 0,
             occluded_output: 0,
             coast_aspect: false,
+            coast_aspect_quantile: 0.0,
             motion_person_height: 0.0,
             ..Self::default()
         }

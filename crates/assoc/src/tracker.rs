@@ -16,6 +16,7 @@
 //! their neighbours and reported, those that left the image are deleted.
 
 use crate::cost::{centre, iou, normalise_rows, validate_boxes, BBox};
+use crate::crowd_aspect::CrowdAspect;
 use crate::jitter::JitterEstimate;
 use crate::lap::{Edge, SparseMatcher};
 use crate::lost_report::LostReport;
@@ -67,6 +68,8 @@ pub struct Tracker {
     perspective: Perspective,
     /// The detector's jitter against the predictions (`jitter_floor`).
     jitter: JitterEstimate,
+    /// The aspect ratios of matched detections (`coast_aspect_quantile`).
+    crowd_aspect: CrowdAspect,
 }
 
 impl std::fmt::Debug for Tracker {
@@ -127,6 +130,7 @@ impl Tracker {
             lost_report: [LostReport::new(), LostReport::new()],
             perspective: Perspective::new(),
             jitter: JitterEstimate::new(),
+            crowd_aspect: CrowdAspect::new(),
         })
     }
 
@@ -154,6 +158,7 @@ impl Tracker {
         self.lost_report.iter_mut().for_each(LostReport::reset);
         self.perspective = Perspective::new();
         self.jitter.reset();
+        self.crowd_aspect.reset();
         self.model = make_model(self.params.motion, self.params.motion_params);
     }
 
@@ -416,6 +421,11 @@ impl Tracker {
         // Update matched tracks, coast the others, drop the dead.
         let horizon = p.output_lost.max(p.occluded_output);
         let adaptive = self.jitter.gain(p.jitter_floor);
+        let whole_aspect = if track_det.iter().all(Option::is_some) {
+            None
+        } else {
+            self.crowd_aspect.quantile(p.coast_aspect_quantile)
+        };
         for (i, t) in self.tracks.iter_mut().enumerate() {
             match track_det[i] {
                 Some(j) => {
@@ -428,6 +438,7 @@ impl Tracker {
                         );
                     }
                     self.perspective.observe(&dets[j]);
+                    self.crowd_aspect.observe(&dets[j]);
                     if t.is_followed() {
                         let (d, pc) = (centre(&dets[j]), t.predicted_centre());
                         self.jitter.observe((d[0] - pc[0]).hypot(d[1] - pc[1]), t.h);
@@ -439,7 +450,7 @@ impl Tracker {
                         self.next_id += 1;
                     }
                 }
-                None => t.coast(&p),
+                None => t.coast(&p, whole_aspect),
             }
         }
         let mut k = 0;
