@@ -496,6 +496,7 @@ impl Tracker {
                         .report(t.time_since_update, p.output_lost_precision);
                 t.confirmed
                     && lost_shown
+                    && (t.time_since_update == 0 || t.hits >= p.coast_min_hits)
                     && (t.time_since_update <= p.output_lost
                         || (t.occluded && t.time_since_update <= p.occluded_output))
             })

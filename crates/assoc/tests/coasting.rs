@@ -224,3 +224,42 @@ fn a_lost_track_is_reported_as_wide_as_the_people_seen_whole() {
     let low = cut_person_lost(0.1);
     assert!(((low[2] - low[0]) - 16.0).abs() < 1e-9, "{low:?}");
 }
+
+/// Two people standing apart, one seen for ten frames and one for the last three of them, then
+/// both missed: the ids reported in the first lost frame, (long-seen, young) each `Some` when
+/// reported.
+fn lost_after_hits(coast_min_hits: u32) -> (bool, bool) {
+    let mut t = Tracker::new(TrackerParams {
+        coast_min_hits,
+        ..params(3)
+    })
+    .unwrap();
+    let (old, young) = ([100.0, 50.0, 140.0, 150.0], [300.0, 50.0, 340.0, 150.0]);
+    let mut ids = (0, 0);
+    for k in 0..10 {
+        let out = if k < 7 {
+            run(&mut t, &[old])
+        } else {
+            run(&mut t, &[old, young])
+        };
+        // Matched tracks are reported whatever their age.
+        assert_eq!(out.len(), if k < 7 { 1 } else { 2 }, "frame {k}");
+        ids = (out[0].id, out.get(1).map_or(0, |o| o.id));
+    }
+    let out = run(&mut t, &[]);
+    let shown = |id: u64| out.iter().any(|o| o.id == id && o.det_index.is_none());
+    (shown(ids.0), shown(ids.1))
+}
+
+#[test]
+fn a_young_lost_track_is_reported_only_after_enough_matches() {
+    assert_eq!(lost_after_hits(0), (true, true), "off: both reported");
+    // Ten matches and three: at 6 only the long-seen one is reported while lost.
+    assert_eq!(lost_after_hits(6), (true, false));
+    assert_eq!(
+        lost_after_hits(3),
+        (true, true),
+        "three matches are enough for 3"
+    );
+    assert_eq!(lost_after_hits(11), (false, false));
+}
