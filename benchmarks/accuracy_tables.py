@@ -86,6 +86,14 @@ CANDIDATES: dict[str, dict[str, Any]] = {
     "tentative_max_age 0": {"tentative_max_age": 0},
     "tentative_max_age 1": {"tentative_max_age": 1},
     "tentative_max_age 3": {"tentative_max_age": 3},
+    "coast_aspect_quantile off": {"coast_aspect_quantile": 0.0},
+    "coast_aspect_quantile 0.75": {"coast_aspect_quantile": 0.75},
+    "coast_aspect_quantile 0.9": {"coast_aspect_quantile": 0.9},
+    "coast_aspect_quantile 0.95": {"coast_aspect_quantile": 0.95},
+    "coast_min_hits 0": {"coast_min_hits": 0},
+    "coast_min_hits 4": {"coast_min_hits": 4},
+    "coast_min_hits 8": {"coast_min_hits": 8},
+    "coast_min_hits 11": {"coast_min_hits": 11},
 }
 # What the package defaults were chosen on: update this where a default is tuned again.
 TUNED_ON = {
@@ -94,15 +102,17 @@ TUNED_ON = {
     "`jitter_floor`, `coast_aspect` and `motion_person_height` on all 15 cells by leave-one-out, "
     "the `/frcnn` and `/int8` ones included; `score_quantile_ceiling` by the same leave-one-out "
     "and by the 11 motion-only cells under the score maps of `score-maps.md`; "
-    "`thresholded_low_iou` and `tentative_max_age` by the same leave-one-out)",
+    "`thresholded_low_iou`, `tentative_max_age` and `coast_min_hits` by the same leave-one-out)",
     "cnn": "the two `/float` videos together (the score reading as above; "
     "`appearance_apart` and `motion_person_height` on all 15 cells by leave-one-out; "
-    "`coast_aspect_state` on the two `/float` videos, checked by leave-one-out)",
+    "`coast_aspect_state` on the two `/float` videos, checked by leave-one-out; "
+    "`coast_aspect_quantile` on the two `/float` videos, checked by leave-one-out)",
 }
 UNTUNED = (
     "every `/frcnn` and `/int8` cell for all but the score reading, `score_quantile_ceiling`, "
     "`max_age`, `output_lost_adaptive`, `position_smoothing`, `jitter_floor`, `coast_aspect`, "
-    "`appearance_apart`, `motion_person_height`, `thresholded_low_iou` and `tentative_max_age`"
+    "`appearance_apart`, `motion_person_height`, `thresholded_low_iou`, `tentative_max_age` "
+    "and `coast_min_hits`"
 )
 MOTION_ROWS = ("frvo", "rvo", "sf", "cv")
 FEATURE_ROWS = ("segmented", "bbox", "masked_pool", "none")

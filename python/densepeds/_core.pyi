@@ -105,6 +105,8 @@ class TrackerKwargs(TypedDict, total=False):
     ground_plane: bool
     motion_person_height: float
     tentative_max_age: int
+    coast_aspect_quantile: float
+    coast_min_hits: int
     neighbor_radius: float
     max_neighbors: int
     time_horizon: float
@@ -166,6 +168,8 @@ class Tracker:
         ground_plane: bool = False,
         motion_person_height: float = 160.0,
         tentative_max_age: int = 2,
+        coast_aspect_quantile: float = 0.0,
+        coast_min_hits: int = 6,
         neighbor_radius: float = 150.0,
         max_neighbors: int = 10,
         time_horizon: float = 5.0,

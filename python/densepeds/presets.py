@@ -103,6 +103,9 @@ _CNN_APPEARANCE: dict[str, float | int | bool] = {
     # A lost person's last boxes are cut narrow by the people in front: the lost track keeps its
     # usual width (coast_aspect) for matching too, so that it is found again when it reappears.
     "coast_aspect_state": True,
+    # A lost person is reported as wide as a person seen whole in this scene (the 90% quantile
+    # of the matched boxes' aspect ratios), not at the narrow width of their last, cut boxes.
+    "coast_aspect_quantile": 0.9,
     # Report lost tracks for output_lost / occluded_output frames whatever the sequence's record:
     # on the two videos the adaptive rule (the tracker's default) reports fewer right boxes.
     "output_lost_adaptive": False,

@@ -218,6 +218,19 @@ tentative_max_age       int    2           0..=4294967295       frames a tentati
                                                                 weakly, a frame or two later, is
                                                                 confirmed (0: a tentative track ends
                                                                 at its first miss)
+coast_aspect_quantile   float  0.0         [0, 1]               a lost track's reported box is at
+                                                                least as wide as this quantile of
+                                                                the aspect ratios (width over
+                                                                height) of every track's matched
+                                                                detections (the last 2000) makes its
+                                                                height: the width of a person seen
+                                                                whole in this scene (0: off)
+coast_min_hits          int    6           0..=4294967295       an unmatched track is reported
+                                                                (output_lost, occluded_output) only
+                                                                once it has been matched at least
+                                                                this many times (a young track lost
+                                                                at once is more often a false
+                                                                detection than a person; 0: off)
 neighbor_radius         float  150.0       (0, inf)             motion model: only agents closer
                                                                 than this (pixels) constrain each
                                                                 other

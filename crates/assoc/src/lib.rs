@@ -2,6 +2,7 @@
 //! and the online [`tracker`].
 
 pub mod cost;
+pub mod crowd_aspect;
 pub mod error;
 pub mod jitter;
 pub mod lap;

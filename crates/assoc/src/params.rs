@@ -473,6 +473,10 @@ tracker_params! {
             "the motion model's lengths (neighbor_radius, max_speed, sf_range, sf_strength) are pixels on a person this tall: each frame the crowd is scaled so that the median track box height (on the ground plane: the fitted height at the reference row) is this, so one setting means the same on every image scale (0: image pixels)";
         tentative_max_age: u32 = 2, ints(0, U32_MAX),
             "frames a tentative track (not yet confirmed by n_init matches) survives unmatched; while it waits it is predicted on its own (not a neighbour in the motion model's step) and matched last, by a detection of the second pass (scored in [low_threshold, det_threshold)) at low_iou_threshold (a confident detection left over starts its own track; from a detector that thresholds its own output, as thresholded_low_iou reads it, every detection is confident), so a person seen once with confidence and then weakly, a frame or two later, is confirmed (0: a tentative track ends at its first miss)";
+        coast_aspect_quantile: f64 = 0.0, UNIT,
+            "a lost track's reported box is at least as wide as this quantile of the aspect ratios (width over height) of every track's matched detections (the last 2000) makes its height: the width of a person seen whole in this scene (0: off)";
+        coast_min_hits: u32 = 6, ints(0, U32_MAX),
+            "an unmatched track is reported (output_lost, occluded_output) only once it has been matched at least this many times (a young track lost at once is more often a false detection than a person; 0: off)";
     }
     motion {
         neighbor_radius: f64, POSITIVE,
@@ -517,8 +521,8 @@ impl TrackerParams {
     /// second_pass=False, recovery=False, size_smoothing=0, position_smoothing=0,
     /// jitter_floor=0, thresholded_low_iou=1, output_lost=0, occluded_output=0,
     /// score_scale="absolute", score_quantile_floor=0, score_quantile_ceiling=0,
-    /// motion_person_height=0, coast_aspect=False, tentative_max_age=0`. Other fields keep their
-    /// defaults.
+    /// motion_person_height=0, coast_aspect=False, coast_aspect_quantile=0,
+    /// coast_min_hits=0, tentative_max_age=0`. Other fields keep their defaults.
     pub fn pure() -> Self {
         Self {
             score_scale: ScoreScale::Absolute,
@@ -535,6 +539,8 @@ impl TrackerParams {
             output_lost: 0,
             occluded_output: 0,
             coast_aspect: false,
+            coast_aspect_quantile: 0.0,
+            coast_min_hits: 0,
             motion_person_height: 0.0,
             tentative_max_age: 0,
             ..Self::default()

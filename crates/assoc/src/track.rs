@@ -233,8 +233,9 @@ impl Track {
 
     /// No detection this frame: move to the prediction; with `coast_aspect` the reported box is
     /// at least as wide as the track's mean aspect ratio makes its height, and with
-    /// `coast_aspect_state` the track's own width too.
-    pub fn coast(&mut self, p: &TrackerParams) {
+    /// `coast_aspect_state` the track's own width too; with `whole_aspect` (the scene's aspect
+    /// of a person seen whole, `coast_aspect_quantile`) the reported box is at least that wide.
+    pub fn coast(&mut self, p: &TrackerParams, whole_aspect: Option<f64>) {
         self.pos += self.pred_vel;
         self.vel = self.pred_vel;
         self.w *= self.pred_scale;
@@ -246,6 +247,12 @@ impl Track {
             self.bbox = box_from_centre(c, wide, self.bbox[3] - self.bbox[1]);
             if p.coast_aspect_state {
                 self.w = self.w.max(self.aspect * self.h);
+            }
+        }
+        if let Some(a) = whole_aspect {
+            let whole = a * (self.bbox[3] - self.bbox[1]);
+            if whole > self.bbox[2] - self.bbox[0] && whole.is_finite() {
+                self.bbox = box_from_centre(centre(&self.bbox), whole, self.bbox[3] - self.bbox[1]);
             }
         }
         self.time_since_update += 1;

@@ -18,6 +18,7 @@
 //! their neighbours and reported, those that left the image are deleted.
 
 use crate::cost::{centre, iou, normalise_rows, validate_boxes, BBox};
+use crate::crowd_aspect::CrowdAspect;
 use crate::jitter::JitterEstimate;
 use crate::lap::{Edge, SparseMatcher};
 use crate::lost_report::LostReport;
@@ -69,6 +70,8 @@ pub struct Tracker {
     perspective: Perspective,
     /// The detector's jitter against the predictions (`jitter_floor`).
     jitter: JitterEstimate,
+    /// The aspect ratios of matched detections (`coast_aspect_quantile`).
+    crowd_aspect: CrowdAspect,
 }
 
 impl std::fmt::Debug for Tracker {
@@ -129,6 +132,7 @@ impl Tracker {
             lost_report: [LostReport::new(), LostReport::new()],
             perspective: Perspective::new(),
             jitter: JitterEstimate::new(),
+            crowd_aspect: CrowdAspect::new(),
         })
     }
 
@@ -156,6 +160,7 @@ impl Tracker {
         self.lost_report.iter_mut().for_each(LostReport::reset);
         self.perspective = Perspective::new();
         self.jitter.reset();
+        self.crowd_aspect.reset();
         self.model = make_model(self.params.motion, self.params.motion_params);
     }
 
@@ -439,6 +444,11 @@ impl Tracker {
         // Update matched tracks, coast the others, drop the dead.
         let horizon = p.output_lost.max(p.occluded_output);
         let adaptive = self.jitter.gain(p.jitter_floor);
+        let whole_aspect = if track_det.iter().all(Option::is_some) {
+            None
+        } else {
+            self.crowd_aspect.quantile(p.coast_aspect_quantile)
+        };
         for (i, t) in self.tracks.iter_mut().enumerate() {
             match track_det[i] {
                 Some(j) => {
@@ -451,6 +461,7 @@ impl Tracker {
                         );
                     }
                     self.perspective.observe(&dets[j]);
+                    self.crowd_aspect.observe(&dets[j]);
                     if t.is_followed() {
                         let (d, pc) = (centre(&dets[j]), t.predicted_centre());
                         self.jitter.observe((d[0] - pc[0]).hypot(d[1] - pc[1]), t.h);
@@ -462,7 +473,7 @@ impl Tracker {
                         self.next_id += 1;
                     }
                 }
-                None => t.coast(&p),
+                None => t.coast(&p, whole_aspect),
             }
         }
         let mut k = 0;
@@ -533,6 +544,7 @@ impl Tracker {
                         .report(t.time_since_update, p.output_lost_precision);
                 t.confirmed
                     && lost_shown
+                    && (t.time_since_update == 0 || t.hits >= p.coast_min_hits)
                     && (t.time_since_update <= p.output_lost
                         || (t.occluded && t.time_since_update <= p.occluded_output))
             })

@@ -176,3 +176,90 @@ fn with_coast_aspect_state_a_lost_track_is_matched_at_its_usual_width() {
     assert!(reappear(true), "matched again at the usual width");
     assert!(!reappear(false), "the narrow prediction misses it");
 }
+
+/// Six people seen whole (40 x 100) and one seen only cut narrow (16 x 100), all standing still
+/// for ten frames; then the narrow one is missed: its reported box in the lost frame.
+fn cut_person_lost(coast_aspect_quantile: f64) -> [f64; 4] {
+    let mut t = Tracker::new(TrackerParams {
+        coast_aspect_quantile,
+        ..params(3)
+    })
+    .unwrap();
+    let whole: Vec<[f64; 4]> = (0..6)
+        .map(|i| {
+            let x = 100.0 + 80.0 * f64::from(i);
+            [x, 300.0, x + 40.0, 400.0]
+        })
+        .collect();
+    let cut = [592.0, 50.0, 608.0, 150.0];
+    for _ in 0..10 {
+        let mut frame = whole.clone();
+        frame.push(cut);
+        run(&mut t, &frame);
+    }
+    let out = run(&mut t, &whole);
+    assert_eq!(out.len(), 7, "the six seen and the lost one reported");
+    for (o, w) in out.iter().zip(&whole) {
+        assert_eq!(o.bbox, *w, "a matched person's box is not widened");
+    }
+    out.iter()
+        .find(|o| o.det_index.is_none())
+        .expect("the lost track is reported")
+        .bbox
+}
+
+#[test]
+fn a_lost_track_is_reported_as_wide_as_the_people_seen_whole() {
+    // Own mean aspect 0.16: reported 16 px wide without the rule.
+    let narrow = cut_person_lost(0.0);
+    assert!(((narrow[2] - narrow[0]) - 16.0).abs() < 1e-9, "{narrow:?}");
+    // 70 aspects seen, 60 of them 0.4: the 0.9 quantile is 0.4, so 40 px, same centre and height.
+    let b = cut_person_lost(0.9);
+    assert!(((b[2] - b[0]) - 40.0).abs() < 1e-9, "{b:?}");
+    assert!(
+        (cx(&b) - 600.0).abs() < 1e-9 && (b[3] - b[1] - 100.0).abs() < 1e-9,
+        "{b:?}"
+    );
+    // The 0.1 quantile is the narrow one's own 0.16: no wider than without the rule.
+    let low = cut_person_lost(0.1);
+    assert!(((low[2] - low[0]) - 16.0).abs() < 1e-9, "{low:?}");
+}
+
+/// Two people standing apart, one seen for ten frames and one for the last three of them, then
+/// both missed: the ids reported in the first lost frame, (long-seen, young) each `Some` when
+/// reported.
+fn lost_after_hits(coast_min_hits: u32) -> (bool, bool) {
+    let mut t = Tracker::new(TrackerParams {
+        coast_min_hits,
+        ..params(3)
+    })
+    .unwrap();
+    let (old, young) = ([100.0, 50.0, 140.0, 150.0], [300.0, 50.0, 340.0, 150.0]);
+    let mut ids = (0, 0);
+    for k in 0..10 {
+        let out = if k < 7 {
+            run(&mut t, &[old])
+        } else {
+            run(&mut t, &[old, young])
+        };
+        // Matched tracks are reported whatever their age.
+        assert_eq!(out.len(), if k < 7 { 1 } else { 2 }, "frame {k}");
+        ids = (out[0].id, out.get(1).map_or(0, |o| o.id));
+    }
+    let out = run(&mut t, &[]);
+    let shown = |id: u64| out.iter().any(|o| o.id == id && o.det_index.is_none());
+    (shown(ids.0), shown(ids.1))
+}
+
+#[test]
+fn a_young_lost_track_is_reported_only_after_enough_matches() {
+    assert_eq!(lost_after_hits(0), (true, true), "off: both reported");
+    // Ten matches and three: at 6 only the long-seen one is reported while lost.
+    assert_eq!(lost_after_hits(6), (true, false));
+    assert_eq!(
+        lost_after_hits(3),
+        (true, true),
+        "three matches are enough for 3"
+    );
+    assert_eq!(lost_after_hits(11), (false, false));
+}
