@@ -106,7 +106,8 @@ TUNED_ON = {
     "cnn": "the two `/float` videos together (the score reading as above; "
     "`appearance_apart` and `motion_person_height` on all 15 cells by leave-one-out; "
     "`coast_aspect_state` on the two `/float` videos, checked by leave-one-out; "
-    "`coast_aspect_quantile` on the two `/float` videos, checked by leave-one-out)",
+    "`coast_aspect_quantile` on the two `/float` videos, checked by leave-one-out; "
+    "`tentative_max_age` 0 on the two `/float` videos)",
 }
 UNTUNED = (
     "every `/frcnn` and `/int8` cell for all but the score reading, `score_quantile_ceiling`, "
