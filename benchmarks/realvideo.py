@@ -295,10 +295,12 @@ def track_video(
     out_file: Path,
 ) -> None:
     """Track the cached video through ``densepeds.Pipeline`` and write MOTChallenge rows."""
-    from densepeds.motio import write_tracks
+    from densepeds.motio import read_seqinfo, write_tracks
     from densepeds.pipeline import Pipeline, track_rows
 
     pipe = Pipeline("yoloseg", motion=motion, features=kind_options(features)[0], **params)
+    info = read_seqinfo(video.seq_dir)
+    pipe.set_image_size(info.width, info.height)  # as `densepeds run` gives it from the frames
     kind = features if pipe.features != "none" else "none"
     rows: list[tuple[float, ...]] = []
     for k, dets in enumerate(video.dets):
@@ -422,7 +424,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         type=_param,
         action="append",
         default=[],
-        help="KEY=VALUE for the yoloseg detector (default: its own defaults)",
+        help="KEY=VALUE for the yoloseg detector (default: its own defaults, quantized=False)",
     )
     ap.add_argument("--kinds", default="segmented,bbox,masked_pool", help="feature kinds to cache")
     ap.add_argument("--write", type=Path, help="also write the tables to this markdown file")
@@ -434,7 +436,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     else:
         settings = [tuple(s.split(":")) for s in args.rows.split(",")]  # type: ignore[misc]
     settings = [(m, default_kind if f == "default" else f) for m, f in settings]
-    det_opts = dict(args.detector_option)
+    # The shipped model's float copy, as on a fresh install: an int8 copy that `densepeds models
+    # quantize` left in the model folders would otherwise be picked up (quantized=None).
+    det_opts = {"quantized": False, **dict(args.detector_option)}
     kinds = sorted({f for _, f in settings if f != "none"} | set(args.kinds.split(",")))
     videos = [
         (load_video(seq, frames, kinds, args.cache, det_opts, args.quiet), frames)
