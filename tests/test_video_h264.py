@@ -248,3 +248,34 @@ def test_ctrl_c_at_a_terminal_keeps_the_video_so_far(tmp_path: Path) -> None:
     frames, fourcc = _decode(outdir / "v.mp4")
     assert fourcc in ("avc1", "h264") and len(frames) == int(match.group(1)) > 0
     assert sorted(p.name for p in outdir.iterdir()) == ["t.txt", "v.mp4"]
+
+
+def test_ctrl_c_inside_a_frames_output_counts_that_frame(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A Ctrl-C that lands while a frame's video frame is being written (in-process, so the
+    moment is exact) is held until that frame's output is complete: the count the run reports
+    is the number of frames in the video and of frames in the tracks file."""
+    from densepeds.cli import main
+
+    seq = shared_path("data", "PETS09-S2L1-dev")
+    plain_write = AnnotatedVideoWriter.write
+    written: list[int] = []
+
+    def write(self: AnnotatedVideoWriter, *args: object, **kwargs: object) -> None:
+        if len(written) == 3:  # the fourth frame: Ctrl-C arrives before it is encoded
+            os.kill(os.getpid(), signal.SIGINT)
+        plain_write(self, *args, **kwargs)  # type: ignore[arg-type]
+        written.append(1)
+
+    monkeypatch.setattr(AnnotatedVideoWriter, "write", write)
+    out, video = tmp_path / "t.txt", tmp_path / "v.mp4"
+    argv = ["run", str(seq), "--features", "none", "-q", "--out", str(out), "--video", str(video)]
+    assert main(argv) == 130
+    err = capsys.readouterr().err
+    match = re.search(r"interrupted after (\d+) frames", err)
+    assert match, err
+    frames, _ = _decode(video)
+    tracked = {int(line.split(",")[0]) for line in out.read_text().splitlines()}
+    assert int(match.group(1)) == len(written) == len(frames) == 4
+    assert max(tracked) <= 4

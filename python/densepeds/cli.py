@@ -421,6 +421,25 @@ class _Terminated(BaseException):
         self.signum = signum
 
 
+@contextmanager
+def _ctrl_c_after_block() -> Iterator[None]:
+    """Ctrl-C (SIGINT) during the block is held until the block ends, then raised as
+    KeyboardInterrupt: a frame's output (its rows, its video frame, the frame count) is then
+    written whole or not at all. Outside the main thread the block runs as is."""
+    caught: list[int] = []
+    try:
+        saved = signal.signal(signal.SIGINT, lambda signum, _frame: caught.append(signum))
+    except ValueError:  # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, saved)
+    if caught:
+        raise KeyboardInterrupt
+
+
 def _expected_frames(src: Any, rng: Any) -> int | None:
     """Frames a run over ``rng`` should decode, where the source knows its length."""
     if src.length is None:
@@ -464,7 +483,7 @@ def _track_source(
     interrupted = False
     try:
         for res in pipe.run_frames(src, rng, dets):
-            with pipe.times.stage("output"):
+            with _ctrl_c_after_block(), pipe.times.stage("output"):
                 rows.extend(track_rows(res.frame_no, res.tracks))
                 matched.extend((res.tracks.det_index >= 0).tolist())
                 ids.update(res.tracks.ids.tolist())
@@ -476,7 +495,7 @@ def _track_source(
                         size=src.size,
                         frame_no=res.frame_no,
                     )
-            frames += 1
+                frames += 1
             bar.update(1)
     except KeyboardInterrupt:
         interrupted = True
