@@ -199,3 +199,32 @@ def test_a_run_without_a_terminal_imports_no_progress_bar(tmp_path: Path) -> Non
     modules = _imported(run, dict(os.environ))
     assert out.stat().st_size > 0 and "densepeds" in modules
     assert not modules & {"tqdm", "onnx", "multiprocessing"}
+
+
+@pytest.mark.parametrize("caching", ["off", "on"])
+def test_dequantize_applies_to_a_model_with_a_dynamic_batch(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caching: str
+) -> None:
+    """``dequantize`` runs the float copy (no activation rounding) also when the model needs no
+    batch rewrite, with the cache off or on."""
+    scale = helper.make_tensor("s", TensorProto.FLOAT, [], [0.1])
+    zero = helper.make_tensor("z", TensorProto.INT8, [], [0])
+    graph = helper.make_graph(
+        [
+            helper.make_node("QuantizeLinear", ["x", "s", "z"], ["q"]),
+            helper.make_node("DequantizeLinear", ["q", "s", "z"], ["y"]),
+        ],
+        "qdq",
+        [helper.make_tensor_value_info("x", TensorProto.FLOAT, ["batch", 4])],
+        [helper.make_tensor_value_info("y", TensorProto.FLOAT, ["batch", 4])],
+        [scale, zero],
+    )
+    path = tmp_path / "qdq.onnx"
+    onnx.save(helper.make_model(graph, opset_imports=[helper.make_opsetid("", 13)]), path)
+    monkeypatch.setenv(onnxutil.ORT_CACHE_ENV, "off" if caching == "off" else str(tmp_path / "c"))
+    x = np.full((2, 4), 0.123, np.float32)
+    rounded, _ = onnxutil.batched_session(path, 1)
+    assert np.allclose(rounded.run(None, {"x": x})[0], 0.1)  # the QDQ graph as it is
+    plain, rewritten = onnxutil.batched_session(path, 1, dequantize=True)
+    assert not rewritten
+    np.testing.assert_array_equal(plain.run(None, {"x": x})[0], x)

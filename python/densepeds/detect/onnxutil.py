@@ -284,7 +284,8 @@ def batched_session(
     if rewritten:
         model = with_dynamic_batch(model)
     if target is None:
-        return make_session(model if rewritten else path, threads), rewritten
+        unchanged = not (rewritten or dequantize)  # else the rewritten model, not the file
+        return make_session(path if unchanged else model, threads), rewritten
     entry = model.metadata_props.add()
     entry.key, entry.value = REWRITTEN_KEY, str(int(rewritten))
     return make_session(model, threads, save_optimised=target), rewritten
