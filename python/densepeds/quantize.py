@@ -54,11 +54,10 @@ META_ORT = "densepeds.onnxruntime"
 
 
 def metadata(path: Path) -> dict[str, str]:
-    """The model's metadata properties (empty for a model without)."""
+    """The model's metadata properties (empty for a model without), read without its graph."""
     from densepeds.detect import onnxutil
 
-    model = onnxutil.load_model(path)
-    return {p.key: p.value for p in model.metadata_props}
+    return onnxutil.model_metadata(path)
 
 
 def is_quantized_copy(path: Path) -> bool:

@@ -244,8 +244,7 @@ class ReID:
                 f"{self.path}: the re-ID model gave non-finite embeddings (NaN or inf) for "
                 f"{int(bad.sum())} of {len(out)} crops"
             )
-        norms = np.linalg.norm(out, axis=1, keepdims=True)
-        return (out / np.maximum(norms, 1e-12)).astype(np.float32)
+        return _unit(out)
 
     def _pool_weights(self, masks: list[npt.NDArray[np.bool_]]) -> npt.NDArray[np.float32]:
         """Per feature cell: POOL_FLOOR + (1 - POOL_FLOOR) * the person's share of the cell."""

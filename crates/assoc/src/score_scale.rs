@@ -161,9 +161,10 @@ impl ScoreScaler {
         self.confident_cut
     }
 
-    /// The lowest score seen (`inf` before any).
-    pub fn lowest(&self) -> f64 {
-        self.lo
+    /// Whether the detector thresholds its own output: every score seen so far is at or above
+    /// [`ScoreScaler::confident_cut`] (a `det-frcnn.txt` cut at 0.5 by its publisher).
+    pub fn thresholded(&self) -> bool {
+        self.lo >= self.confident_cut
     }
 
     /// The `t`-quantile of the last scores kept: the smallest of them with at least a fraction

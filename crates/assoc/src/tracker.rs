@@ -359,8 +359,7 @@ impl Tracker {
             // det_threshold and new_track_threshold as given), nothing is low in ByteTrack's
             // sense: what reaches this pass was held back by the quantile floor alone and
             // extends a track at a smaller overlap.
-            let scale = &self.scores_seen;
-            let band_iou = if scale.lowest() >= scale.confident_cut() {
+            let band_iou = if self.scores_seen.thresholded() {
                 p.low_iou_threshold.min(p.thresholded_low_iou)
             } else {
                 p.low_iou_threshold
@@ -401,9 +400,7 @@ impl Tracker {
         // the second pass's own overlap. A confident detection left over starts a track of its
         // own instead, as without `tentative_max_age`; from a detector that thresholds its own
         // output every detection is confident, so there this stage takes none.
-        let scale = &self.scores_seen;
-        let thresholded = scale.lowest() >= scale.confident_cut();
-        if p.tentative_max_age > 0 && p.second_pass && !thresholded {
+        if p.tentative_max_age > 0 && p.second_pass && !self.scores_seen.thresholded() {
             iou_edges(
                 &self.tracks,
                 &track_det,

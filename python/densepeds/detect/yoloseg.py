@@ -32,7 +32,7 @@ from densepeds.detect.tiling import (
 from densepeds.errors import ModelError, ParameterError
 from densepeds.frames import check_frame
 from densepeds.modelfiles import quantized_file_name
-from densepeds.quantize import META_SOURCE
+from densepeds.quantize import META_SOURCE, is_quantized_copy, metadata
 from densepeds.types import Detections
 
 LETTERBOX_GREY = 114
@@ -135,7 +135,7 @@ class YoloSegDetector:
         self.person_class = person_class
         self.source = model
         self.path = choose_model(model, quantized)
-        self.quantized = META_SOURCE in onnxutil.model_metadata(self.path)
+        self.quantized = is_quantized_copy(self.path)
         self.session, self.rewritten = onnxutil.batched_session(
             self.path, threads, dequantize=dequantize and not self.quantized
         )
@@ -381,7 +381,7 @@ def choose_model(model: Path, quantized: bool | None) -> Path:
     when there is none) or None (when there is one). A copy made from a different file than
     ``model`` (its recorded sha256 differs) is a ModelError either way, never used silently.
     """
-    if quantized is False or META_SOURCE in onnxutil.model_metadata(model):
+    if quantized is False or is_quantized_copy(model):
         return model
     from densepeds.modelfiles import locate, sha256_of
 
@@ -394,7 +394,7 @@ def choose_model(model: Path, quantized: bool | None) -> Path:
                 "one with `densepeds models quantize --calibrate VIDEO`"
             )
         return model
-    recorded = onnxutil.model_metadata(found).get(META_SOURCE)
+    recorded = metadata(found).get(META_SOURCE)
     if recorded != sha256_of(model):
         raise ModelError(
             f"{found} was not made from {model} (sha256 differs); remake it with "
