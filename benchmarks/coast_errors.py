@@ -44,11 +44,9 @@ def _centre(b: Boxes) -> Boxes:
 
 
 def _iou(a: Boxes, b: Boxes) -> float:
-    w = max(0.0, min(a[2], b[2]) - max(a[0], b[0]))
-    h = max(0.0, min(a[3], b[3]) - max(a[1], b[1]))
-    inter = w * h
-    union = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - inter
-    return inter / union if union > 0 else 0.0
+    from densepeds.boxes import iou_matrix
+
+    return float(iou_matrix(a, b)[0, 0])
 
 
 def _shift(b: Boxes, d: Boxes) -> Boxes:
