@@ -105,6 +105,27 @@ def test_cached_session_is_reused_and_rebuilt_when_model_or_ort_changes(
     assert not list(cache.glob(".*.tmp"))
 
 
+def test_cache_keeps_the_graphs_used_last(
+    tmp_path: Path, cache: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(onnxutil, "ORT_CACHE_KEEP", 2)
+    models = [tiny_model(tmp_path / f"m{k}.onnx", scale=float(k + 2)) for k in range(3)]
+    x = np.ones((1, 4), np.float32)
+    onnxutil.batched_session(models[0], 1)
+    first = sorted(cache.glob("*.onnx"))
+    os.utime(first[0], (1, 1))  # made long ago...
+    onnxutil.batched_session(models[0], 1)  # ...but used now: its time stamp moves
+    assert first[0].stat().st_mtime > 1
+    onnxutil.batched_session(models[1], 1)
+    (stale,) = [f for f in cache.glob("*.onnx") if f not in first]
+    os.utime(stale, (2, 2))  # the least recently used of the two
+    onnxutil.batched_session(models[2], 1)  # a third graph: the stale one goes
+    kept = sorted(cache.glob("*.onnx"))
+    assert len(kept) == 2 and stale not in kept and first[0] in kept
+    session, _ = onnxutil.batched_session(models[1], 1)  # made again when asked for
+    assert np.array_equal(session.run(None, {"x": x})[0], 3 * x)
+
+
 def test_damaged_or_unwritable_cache_still_gives_a_session(
     tmp_path: Path, cache: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -9,8 +9,10 @@ optimised for this CPU) in an on-disk cache, ``$DENSEPEDS_ORT_CACHE`` (default
 instead of loading, rewriting and optimising the model again; a cached file is named by the
 model file's sha256, the rewriting asked for, this module's code, the onnxruntime version, the
 thread count and the CPU, so that a change of any of them makes a new one. Its outputs are
-bitwise those of a session made from the model (tests/test_ort_cache.py). ``onnx`` itself is
-imported only where a model is rewritten.
+bitwise those of a session made from the model (tests/test_ort_cache.py). The folder keeps the
+``ORT_CACHE_KEEP`` graphs used last (a file's time stamp is set at each use); older ones, such as
+those an upgrade left behind, are removed when a new one is written. ``onnx`` itself is imported
+only where a model is rewritten.
 """
 
 from __future__ import annotations
@@ -108,6 +110,7 @@ def _session_saving(
             data, sess_options=options, providers=["CPUExecutionProvider"]
         )
         os.replace(tmp, target)
+        prune_cache(target.parent, ORT_CACHE_KEEP)
         return session
     except Exception:  # an unwritable cache only costs the next start its optimisation
         with contextlib.suppress(OSError):
@@ -116,6 +119,7 @@ def _session_saving(
 
 
 ORT_CACHE_ENV = "DENSEPEDS_ORT_CACHE"
+ORT_CACHE_KEEP = 16  # optimised graphs kept (a model, per recipe and thread count)
 REWRITTEN_KEY = "densepeds.rewritten_for_batch"  # metadata of a cached graph: batch made dynamic
 
 
@@ -176,11 +180,25 @@ def _cached_session(file: Path, threads: int | None) -> ort.InferenceSession | N
     options = session_options(threads)
     options.graph_optimization_level = ort.GraphOptimizationLevel.ORT_DISABLE_ALL
     try:
-        return ort.InferenceSession(
+        session = ort.InferenceSession(
             str(file), sess_options=options, providers=["CPUExecutionProvider"]
         )
     except Exception:  # a damaged file (e.g. a full disk): made again
         return None
+    with contextlib.suppress(OSError):
+        os.utime(file)  # last used now: kept by prune_cache
+    return session
+
+
+def prune_cache(folder: Path, keep: int) -> None:
+    """Remove all but the ``keep`` most recently used graphs (``*.onnx``) in ``folder``."""
+    try:
+        files = [(f.stat().st_mtime, f) for f in folder.glob("*.onnx")]
+    except OSError:
+        return
+    for _, f in sorted(files, reverse=True)[keep:]:
+        with contextlib.suppress(OSError):
+            f.unlink()
 
 
 def specs(values: list[ort.NodeArg]) -> list[TensorSpec]:
