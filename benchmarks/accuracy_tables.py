@@ -94,9 +94,6 @@ CANDIDATES: dict[str, dict[str, Any]] = {
     "coast_min_hits 4": {"coast_min_hits": 4},
     "coast_min_hits 8": {"coast_min_hits": 8},
     "coast_min_hits 11": {"coast_min_hits": 11},
-    "camera_motion_min_tracks 2": {"camera_motion_min_tracks": 2},
-    "camera_motion_min_tracks 3": {"camera_motion_min_tracks": 3},
-    "camera_motion_min_tracks 6": {"camera_motion_min_tracks": 6},
 }
 # What the package defaults were chosen on: update this where a default is tuned again.
 TUNED_ON = {

@@ -107,7 +107,6 @@ class TrackerKwargs(TypedDict, total=False):
     tentative_max_age: int
     coast_aspect_quantile: float
     coast_min_hits: int
-    camera_motion_min_tracks: int
     neighbor_radius: float
     max_neighbors: int
     time_horizon: float
@@ -171,7 +170,6 @@ class Tracker:
         tentative_max_age: int = 2,
         coast_aspect_quantile: float = 0.0,
         coast_min_hits: int = 6,
-        camera_motion_min_tracks: int = 0,
         neighbor_radius: float = 150.0,
         max_neighbors: int = 10,
         time_horizon: float = 5.0,

@@ -1,7 +1,6 @@
 //! Association for DensePeds: cost matrices (IoU, cosine), optimal assignment, track bookkeeping
 //! and the online [`tracker`].
 
-pub mod camera_motion;
 pub mod cost;
 pub mod crowd_aspect;
 pub mod error;

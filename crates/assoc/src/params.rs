@@ -477,8 +477,6 @@ tracker_params! {
             "a lost track's reported box is at least as wide as this quantile of the aspect ratios (width over height) of every track's matched detections (the last 2000) makes its height: the width of a person seen whole in this scene (0: off)";
         coast_min_hits: u32 = 6, ints(0, U32_MAX),
             "an unmatched track is reported (output_lost, occluded_output) only once it has been matched at least this many times (a young track lost at once is more often a false detection than a person; 0: off)";
-        camera_motion_min_tracks: u32 = 0, ints(0, U32_MAX),
-            "camera motion from the boxes: with at least this many (and 2) tracks matched in this frame and the previous one, the mean offset from their predicted to their matched boxes, shrunk by the share of it that people have had in common so far (the camera's), moves every unmatched track, so a lost person's box follows the scene (0: off)";
     }
     motion {
         neighbor_radius: f64, POSITIVE,
@@ -524,8 +522,7 @@ impl TrackerParams {
     /// jitter_floor=0, thresholded_low_iou=1, output_lost=0, occluded_output=0,
     /// score_scale="absolute", score_quantile_floor=0, score_quantile_ceiling=0,
     /// motion_person_height=0, coast_aspect=False, coast_aspect_quantile=0,
-    /// coast_min_hits=0, tentative_max_age=0, camera_motion_min_tracks=0`. Other fields keep
-    /// their defaults.
+    /// coast_min_hits=0, tentative_max_age=0`. Other fields keep their defaults.
     pub fn pure() -> Self {
         Self {
             score_scale: ScoreScale::Absolute,
@@ -546,7 +543,6 @@ impl TrackerParams {
             coast_min_hits: 0,
             motion_person_height: 0.0,
             tentative_max_age: 0,
-            camera_motion_min_tracks: 0,
             ..Self::default()
         }
     }

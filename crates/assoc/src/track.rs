@@ -141,23 +141,6 @@ impl Track {
         self.predicted = box_from_centre([c.x, c.y], s * self.w, s * self.h);
     }
 
-    /// Moves everything the track remembers of the image by `d` pixels (the camera moved):
-    /// its state, prediction, reported and last observed boxes and matched history, so that
-    /// velocities measured later span the scene, not the camera.
-    pub fn shift(&mut self, d: Vector2<f64>) {
-        let by = |b: &mut BBox| {
-            (b[0], b[1], b[2], b[3]) = (b[0] + d.x, b[1] + d.y, b[2] + d.x, b[3] + d.y);
-        };
-        self.pos += d;
-        by(&mut self.predicted);
-        by(&mut self.bbox);
-        by(&mut self.last_obs);
-        for (_, c, foot) in &mut self.history {
-            *c += d;
-            *foot += d.y;
-        }
-    }
-
     pub fn predicted_centre(&self) -> [f64; 2] {
         centre(&self.predicted)
     }

@@ -17,7 +17,6 @@
 //! classified from the scene ([`crate::occlusion`]): occluded ones keep being predicted among
 //! their neighbours and reported, those that left the image are deleted.
 
-use crate::camera_motion::CameraMotion;
 use crate::cost::{centre, iou, normalise_rows, validate_boxes, BBox};
 use crate::crowd_aspect::CrowdAspect;
 use crate::jitter::JitterEstimate;
@@ -73,8 +72,6 @@ pub struct Tracker {
     jitter: JitterEstimate,
     /// The aspect ratios of matched detections (`coast_aspect_quantile`).
     crowd_aspect: CrowdAspect,
-    /// The camera's shift per frame (`camera_motion_min_tracks`).
-    camera: CameraMotion,
 }
 
 impl std::fmt::Debug for Tracker {
@@ -136,7 +133,6 @@ impl Tracker {
             perspective: Perspective::new(),
             jitter: JitterEstimate::new(),
             crowd_aspect: CrowdAspect::new(),
-            camera: CameraMotion::new(),
         })
     }
 
@@ -165,7 +161,6 @@ impl Tracker {
         self.perspective = Perspective::new();
         self.jitter.reset();
         self.crowd_aspect.reset();
-        self.camera.reset();
         self.model = make_model(self.params.motion, self.params.motion_params);
     }
 
@@ -420,10 +415,6 @@ impl Tracker {
             record(&pairs, &mut track_det, &mut det_track);
         }
 
-        // Camera motion (`camera_motion_min_tracks`): the shift the followed matched tracks
-        // share moves every unmatched track's prediction.
-        self.follow_camera(&dets, &track_det, p.camera_motion_min_tracks as usize);
-
         // Unmatched confirmed tracks: occluded, left the image, or neither.
         let mut left_image = vec![false; nt];
         if p.occluded_output > 0 {
@@ -535,33 +526,6 @@ impl Tracker {
         for (i, mut t) in held.into_iter().rev() {
             t.set_prediction(t.pref_vel, 1.0);
             self.tracks.insert(i, t);
-        }
-    }
-
-    /// Moves every unmatched track's prediction by this frame's camera motion, estimated from
-    /// the tracks matched in this frame and the previous one ([`crate::camera_motion`]).
-    fn follow_camera(&mut self, dets: &[BBox], track_det: &[Option<usize>], min_tracks: usize) {
-        if min_tracks == 0 {
-            return;
-        }
-        let offsets: Vec<[f64; 2]> = self
-            .tracks
-            .iter()
-            .zip(track_det)
-            .filter_map(|(t, j)| {
-                let j = (*j).filter(|_| t.is_followed())?;
-                let (d, c) = (centre(&dets[j]), t.predicted_centre());
-                Some([d[0] - c[0], d[1] - c[1]])
-            })
-            .collect();
-        let Some(shift) = self.camera.observe(&offsets, min_tracks) else {
-            return;
-        };
-        let d = nalgebra::Vector2::new(shift[0], shift[1]);
-        for (t, j) in self.tracks.iter_mut().zip(track_det) {
-            if j.is_none() {
-                t.shift(d);
-            }
         }
     }
 
