@@ -20,7 +20,11 @@ over:
   (rebuilt from its matched embeddings as the tracker summarises them) and to the nearest other
   lost track's, and why the old track did not take the detection;
 - ``switch``: a track matched in the previous frame on another person jumped to this one;
-- ``coast``: a track that was lost (unmatched) after another person took this one over;
+- ``coast``: a track that was lost (unmatched) after another person took this one over.
+  Both are detailed by the person's visibility and neighbours (people within one box height),
+  the overlap of the taking track's last matched box with its new one, whether its matched
+  detections changed person (a detection switch) or only its reported box did, and the taken
+  detection's cosine distance to the taking track's gallery and to the person's earlier id's;
 - ``back``: the person's earlier id came back (the run in between was another id's).
 
 Rows lost: the person's rows not under its most frequent id (what IDF1 counts), each run
@@ -268,8 +272,11 @@ def detail_switch(
     """Fills ``ev.info`` for an id that took over a person: whether the detections it matched
     changed person (a real switch) or only its reported box moved onto another person."""
     t = tracks[ev.new]
-    ids, _, v = gt[ev.frame]
-    info: dict[str, Any] = {"vis": float(v[ids == ev.person][0])}
+    ids, boxes, v = gt[ev.frame]
+    me = boxes[ids == ev.person][0]
+    h = me[3] - me[1]
+    near = np.hypot(*(_centre(boxes.T) - _centre(me)[:, None])) <= h
+    info: dict[str, Any] = {"vis": float(v[ids == ev.person][0]), "neighbours": int(near.sum()) - 1}
     f2 = ev.frame
     prev = [f for f, (_, j) in t.rows.items() if f < f2 and j >= 0]
     j2 = t.rows[f2][1] if f2 in t.rows else -1
@@ -289,6 +296,8 @@ def detail_switch(
             info["how"] = "reported box moved (detection not on the person)"
         else:
             info["how"] = "from an unlabelled detection"
+        # The overlap term: the taking track's last matched box against the taken detection.
+        info["iou"] = _iou(t.rows[fp][0], t.rows[f2][0])
         if emb is not None:
             e = emb[f2 - 1][j2]
             info["app_new"] = cos_dist(gallery(emb, t, f2, capacity), e)
@@ -434,9 +443,12 @@ def report(cell: grid.Cell, params: dict[str, Any], cache: Path, hits: int) -> N
             continue
         for e in ev:
             detail_switch(e, tracks, det_people, gt, emb, int(p["gallery_size"]))
+        moved = _median([e.info.get("iou", np.nan) for e in ev])
         print(
-            f"\n{k}: visibility of the person taken over median "
-            f"{_median([e.info['vis'] for e in ev]):.2f}"
+            f"\n{k}: the person taken over: visibility median "
+            f"{_median([e.info['vis'] for e in ev]):.2f}, people within one box height median "
+            f"{_median([e.info['neighbours'] for e in ev]):.0f}; the taking track's last matched "
+            f"box against its new box: IoU median {moved:.2f}"
         )
         for h, c in Counter(e.info["how"] for e in ev).most_common():
             sel = [e for e in ev if e.info["how"] == h]
