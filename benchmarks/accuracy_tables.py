@@ -94,6 +94,11 @@ CANDIDATES: dict[str, dict[str, Any]] = {
     "coast_min_hits 4": {"coast_min_hits": 4},
     "coast_min_hits 8": {"coast_min_hits": 8},
     "coast_min_hits 11": {"coast_min_hits": 11},
+    "reid_newborn off": {"reid_newborn": 0},
+    "reid_newborn 3": {"reid_newborn": 3},
+    "reid_newborn 5": {"reid_newborn": 5},
+    "reid_margin 0.05": {"reid_margin": 0.05},
+    "reid_margin 0.3": {"reid_margin": 0.3},
 }
 # What the package defaults were chosen on: update this where a default is tuned again.
 TUNED_ON = {
@@ -107,13 +112,14 @@ TUNED_ON = {
     "`appearance_apart` and `motion_person_height` on all 15 cells by leave-one-out; "
     "`coast_aspect_state` on the two `/float` videos, checked by leave-one-out; "
     "`coast_aspect_quantile` on the two `/float` videos, checked by leave-one-out; "
-    "`tentative_max_age` 0 on the two `/float` videos)",
+    "`tentative_max_age` 0 on the two `/float` videos; `reid_newborn` and `reid_margin`, which "
+    "act only with embeddings, on the four video cells and checked by leave-one-out)",
 }
 UNTUNED = (
     "every `/frcnn` and `/int8` cell for all but the score reading, `score_quantile_ceiling`, "
     "`max_age`, `output_lost_adaptive`, `position_smoothing`, `jitter_floor`, `coast_aspect`, "
     "`appearance_apart`, `motion_person_height`, `thresholded_low_iou`, `tentative_max_age` "
-    "and `coast_min_hits`"
+    "and `coast_min_hits`; the `/int8` cells for all but `reid_newborn` and `reid_margin`"
 )
 MOTION_ROWS = ("frvo", "rvo", "sf", "cv")
 FEATURE_ROWS = ("segmented", "bbox", "masked_pool", "none")

@@ -107,6 +107,8 @@ class TrackerKwargs(TypedDict, total=False):
     tentative_max_age: int
     coast_aspect_quantile: float
     coast_min_hits: int
+    reid_newborn: int
+    reid_margin: float
     neighbor_radius: float
     max_neighbors: int
     time_horizon: float
@@ -170,6 +172,8 @@ class Tracker:
         tentative_max_age: int = 2,
         coast_aspect_quantile: float = 0.0,
         coast_min_hits: int = 6,
+        reid_newborn: int = 4,
+        reid_margin: float = 0.15,
         neighbor_radius: float = 150.0,
         max_neighbors: int = 10,
         time_horizon: float = 5.0,

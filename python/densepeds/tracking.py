@@ -231,6 +231,22 @@ coast_min_hits          int    6           0..=4294967295       an unmatched tra
                                                                 this many times (a young track lost
                                                                 at once is more often a false
                                                                 detection than a person; 0: off)
+reid_newborn            int    4           0..=4294967295       deferred re-identification: when a
+                                                                track born while confirmed tracks
+                                                                were lost reaches this many matches
+                                                                (at least n_init), the mean of its
+                                                                embeddings so far is compared with
+                                                                those lost tracks' galleries; the
+                                                                nearest, if within
+                                                                min(appearance_threshold,
+                                                                appearance_apart) and nearer than
+                                                                every other by reid_margin, gives
+                                                                the new track its id from that frame
+                                                                on and ends (0: off)
+reid_margin             float  0.15        [0, 2]               reid_newborn: how much nearer in
+                                                                cosine distance the chosen lost
+                                                                track must be than every other lost
+                                                                track
 neighbor_radius         float  150.0       (0, inf)             motion model: only agents closer
                                                                 than this (pixels) constrain each
                                                                 other

@@ -11,6 +11,7 @@ pub mod occlusion;
 pub mod params;
 pub mod perspective;
 mod predict;
+mod reid;
 pub mod score_scale;
 mod track;
 pub mod tracker;

@@ -477,6 +477,10 @@ tracker_params! {
             "a lost track's reported box is at least as wide as this quantile of the aspect ratios (width over height) of every track's matched detections (the last 2000) makes its height: the width of a person seen whole in this scene (0: off)";
         coast_min_hits: u32 = 6, ints(0, U32_MAX),
             "an unmatched track is reported (output_lost, occluded_output) only once it has been matched at least this many times (a young track lost at once is more often a false detection than a person; 0: off)";
+        reid_newborn: u32 = 4, ints(0, U32_MAX),
+            "deferred re-identification: when a track born while confirmed tracks were lost reaches this many matches (at least n_init), the mean of its embeddings so far is compared with those lost tracks' galleries; the nearest, if within min(appearance_threshold, appearance_apart) and nearer than every other by reid_margin, gives the new track its id from that frame on and ends (0: off)";
+        reid_margin: f64 = 0.15, closed(0.0, 2.0),
+            "reid_newborn: how much nearer in cosine distance the chosen lost track must be than every other lost track";
     }
     motion {
         neighbor_radius: f64, POSITIVE,
@@ -522,7 +526,7 @@ impl TrackerParams {
     /// jitter_floor=0, thresholded_low_iou=1, output_lost=0, occluded_output=0,
     /// score_scale="absolute", score_quantile_floor=0, score_quantile_ceiling=0,
     /// motion_person_height=0, coast_aspect=False, coast_aspect_quantile=0,
-    /// coast_min_hits=0, tentative_max_age=0`. Other fields keep their defaults.
+    /// coast_min_hits=0, tentative_max_age=0, reid_newborn=0`. Other fields keep their defaults.
     pub fn pure() -> Self {
         Self {
             score_scale: ScoreScale::Absolute,
@@ -543,6 +547,7 @@ impl TrackerParams {
             coast_min_hits: 0,
             motion_person_height: 0.0,
             tentative_max_age: 0,
+            reid_newborn: 0,
             ..Self::default()
         }
     }

@@ -31,6 +31,8 @@ pub(crate) struct Track {
     pub predicted: BBox,
     pub last_obs: BBox,
     pub last_obs_frame: u64,
+    /// The frame of the track's first detection.
+    pub born: u64,
     /// Recent matched centres and foot rows `(frame, centre, foot y)`, for the preferred
     /// velocity.
     history: VecDeque<(u64, Vector2<f64>, f64)>,
@@ -79,6 +81,7 @@ impl Track {
             predicted: bbox,
             last_obs: bbox,
             last_obs_frame: frame,
+            born: frame,
             history: VecDeque::from([(frame, c, bbox[3])]),
             hits: 1,
             time_since_update: 0,
@@ -270,6 +273,15 @@ impl Track {
     pub fn appearance_distance(&self, e: &[f32]) -> f64 {
         self.gallery.distance(e)
     }
+
+    /// Smallest cosine distance between a row of this track's gallery and a row of `other`'s
+    /// (1 where either is empty).
+    pub fn gallery_distance(&self, other: &Track) -> f64 {
+        self.gallery
+            .rows()
+            .map(|r| other.gallery.distance(r))
+            .fold(1.0, f64::min)
+    }
 }
 
 /// Rows a gallery compares against at most, whatever its capacity.
@@ -338,6 +350,12 @@ impl Gallery {
             normalise(row);
         }
         self.filled = (self.filled + 1) % self.block;
+    }
+
+    /// The rows (unit length).
+    fn rows(&self) -> impl Iterator<Item = &[f32]> {
+        let d = self.data.len().checked_div(self.rows).unwrap_or(1).max(1);
+        self.data.chunks_exact(d).take(self.rows)
     }
 
     /// Smallest cosine distance from `e` (unit length) to the rows.
@@ -440,6 +458,33 @@ mod tests {
             assert!(rows.contains(&unit(k, d)));
         }
         assert!(!rows.contains(&unit(0, d)) && !rows.contains(&unit(1, d)));
+    }
+
+    #[test]
+    fn gallery_distance_is_the_nearest_pair_of_rows() {
+        let d = 11;
+        let track = |seeds: &[u64]| {
+            let mut t = Track::new(0, [0.0, 0.0, 1.0, 2.0], 1.0, 1, None, 3);
+            for &k in seeds {
+                t.gallery.add(&unit(k, d));
+            }
+            t
+        };
+        let (a, b) = (track(&[1, 2, 3, 4]), track(&[5, 6]));
+        let rows = |t: &Track| t.gallery.rows().map(<[f32]>::to_vec).collect::<Vec<_>>();
+        assert_eq!(rows(&a).len(), 3);
+        let want = rows(&a)
+            .iter()
+            .flat_map(|x| {
+                rows(&b).into_iter().map(move |y| {
+                    let x64: Vec<f64> = x.iter().map(|&v| f64::from(v)).collect();
+                    cosine(&x64, &y)
+                })
+            })
+            .fold(f64::INFINITY, f64::min);
+        assert!((a.gallery_distance(&b) - want).abs() < 1e-6);
+        assert!((b.gallery_distance(&a) - want).abs() < 1e-6);
+        assert_eq!(a.gallery_distance(&track(&[])), 1.0);
     }
 
     #[test]

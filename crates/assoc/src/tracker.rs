@@ -13,7 +13,8 @@
 //! 5. tentative tracks that missed a frame (`tentative_max_age`): low-score detections at the
 //!    second pass's overlap, after every other track has had its choice;
 //!
-//! then update, age and delete tracks and start new ones. An unmatched confirmed track is
+//! then update, age and delete tracks, let a young track take a lost one's id where their
+//! appearance agrees ([`crate::reid`], `reid_newborn`), and start new ones. An unmatched confirmed track is
 //! classified from the scene ([`crate::occlusion`]): occluded ones keep being predicted among
 //! their neighbours and reported, those that left the image are deleted.
 
@@ -26,6 +27,7 @@ use crate::occlusion::{classify, complete, Scene, Unmatched};
 use crate::params::TrackerParams;
 use crate::perspective::{GroundMap, Perspective};
 use crate::predict::predict;
+use crate::reid::merge_newborn;
 use crate::score_scale::ScoreScaler;
 use crate::track::Track;
 use crate::TrackError;
@@ -493,6 +495,14 @@ impl Tracker {
             k += 1;
             keep
         });
+
+        // Deferred re-identification (`reid_newborn`): a young track may take a lost one's id.
+        let matched: Vec<bool> = self
+            .tracks
+            .iter()
+            .map(|t| t.time_since_update == 0)
+            .collect();
+        merge_newborn(&mut self.tracks, &matched, &p);
 
         // New tracks from unmatched high-score detections.
         for j in 0..n {
