@@ -14,9 +14,9 @@
 //!    second pass's overlap, after every other track has had its choice;
 //!
 //! then update, age and delete tracks, let a young track take a lost one's id where their
-//! appearance agrees ([`crate::reid`], `reid_newborn`), and start new ones. An unmatched confirmed track is
-//! classified from the scene ([`crate::occlusion`]): occluded ones keep being predicted among
-//! their neighbours and reported, those that left the image are deleted.
+//! appearance agrees ([`crate::reid`], `reid_newborn`), and start new ones. An unmatched
+//! confirmed track is classified from the scene ([`crate::occlusion`]): occluded ones keep
+//! being predicted among their neighbours and reported, those that left the image are deleted.
 
 use crate::cost::{centre, iou, normalise_rows, validate_boxes, BBox};
 use crate::crowd_aspect::CrowdAspect;
