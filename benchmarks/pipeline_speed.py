@@ -6,12 +6,12 @@
 
 For each sequence, each repeat runs both as separate processes (niced, ``--nice``), model
 loading included (after one untimed 1-frame run of each, which fills onnxruntime's cache of
-optimised graphs as a user's first start does), alternating which goes first: ours (`python -m
-densepeds run SEQ --detector yoloseg --frames A:B`, the package defaults) and
-`benchmarks/reference_pipeline.py` (the straightforward pipeline, on the tiles ours picks for the
-frame size). onnxruntime gets ``--threads`` intra-op threads in both (by CPU affinity for ours:
-the command is started under ``taskset`` with that many CPUs when the machine has more; else it
-is the machine's count).
+optimised graphs and Python's bytecode cache as a user's first start does), alternating which
+goes first: ours (`python -m densepeds run SEQ --detector yoloseg --frames A:B`, the package
+defaults) and `benchmarks/reference_pipeline.py` (the straightforward pipeline, on the tiles ours
+picks for the frame size). onnxruntime gets ``--threads`` intra-op threads in both (by CPU
+affinity for ours: the command is started under ``taskset`` with that many CPUs when the machine
+has more; else it is the machine's count).
 Prints each run's wall and CPU seconds, per-stage ms/frame and the load average, then the
 medians, re-ID's share of our frame and the ratio reference / ours. ``--profile`` adds an
 in-process pass of our pipeline that splits detection into preprocessing, inference, box
@@ -73,8 +73,17 @@ class Run:
     stages: dict[str, float]  # ms per frame, as the process printed them
 
 
-def run_once(cmd: list[str], marker: str) -> Run:
+def child_env(pycache: Path) -> dict[str, str]:
+    """The timed processes' environment: Python's compiled bytecode cached in ``pycache`` (an
+    installed package has its .pyc files; a source checkout run with PYTHONDONTWRITEBYTECODE
+    would compile every module at every start), one OpenBLAS thread."""
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1", PYTHONUNBUFFERED="1")
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
+    env["PYTHONPYCACHEPREFIX"] = str(pycache)
+    return env
+
+
+def run_once(cmd: list[str], marker: str, env: dict[str, str]) -> Run:
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     proc = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=REPO)
@@ -180,18 +189,20 @@ def compare(
         lines.append(line)
 
     say(f"load average before: {_load()}")
-    # Each pipeline once on one frame, untimed: onnxruntime's optimised graphs are then cached
-    # (densepeds.detect.onnxutil), as every start but a user's first finds them.
+    # Each pipeline once on one frame, untimed: onnxruntime's optimised graphs (see
+    # densepeds.detect.onnxutil) and Python's bytecode are then cached, as every start but a
+    # user's first finds them.
+    env = child_env(Path(tmp) / "pycache")
     first = frames.split(":")[0]
     for name in names:
         cmd = cmds[name]
         if "--frames" in cmd:
             at = cmd.index("--frames") + 1
-            run_once([*cmd[:at], f"{first}:{first}", *cmd[at + 1 :]], markers[name])
+            run_once([*cmd[:at], f"{first}:{first}", *cmd[at + 1 :]], markers[name], env)
     for rep in range(args.repeats):
         order = names if rep % 2 == 0 else names[::-1]
         for name in order:
-            r = run_once(cmds[name], markers[name])
+            r = run_once(cmds[name], markers[name], env)
             runs[name].append(r)
             stages = ", ".join(f"{k} {v:.1f}" for k, v in r.stages.items())
             say(

@@ -350,6 +350,25 @@ def test_yoloseg_decoding_geometry(tmp_path: Path) -> None:
     assert all(v >= 0 for v in det.stage_seconds.values())
 
 
+def test_yoloseg_input_is_the_views_in_rgb_over_255(tmp_path: Path) -> None:
+    det = make_detector("yoloseg", tiny_yoloseg(tmp_path / "y.onnx"), tiles=None, threads=1)
+    assert isinstance(det, YoloSegDetector)
+    views = np.random.default_rng(5).integers(0, 256, (3, 64, 80, 3), np.uint8)
+    # Element by element, independent of how prepare() orders its passes.
+    want = np.empty((3, 3, 64, 80), np.float32)
+    for b, c, y, x in np.ndindex(*want.shape):
+        want[b, c, y, x] = np.float32(views[b, y, x, 2 - c]) * np.float32(1 / 255)
+    got = det.prepare(views)
+    assert got.dtype == np.float32 and got.flags.c_contiguous
+    np.testing.assert_array_equal(got, want)
+    # A view of a bigger array (not contiguous) gives the same.
+    wide = np.zeros((3, 64, 100, 3), np.uint8)
+    wide[:, :, 10:90] = views
+    np.testing.assert_array_equal(det.prepare(wide[:, :, 10:90]), want)
+    det.nhwc = True
+    np.testing.assert_array_equal(det.prepare(views), want.transpose(0, 2, 3, 1))
+
+
 def test_yoloseg_tiles_map_back_to_the_frame(tmp_path: Path) -> None:
     model = tiny_yoloseg(tmp_path / "y.onnx")
     det = make_detector("yoloseg", model, tiles=(2, 1), threads=1, full_frame=True)

@@ -182,7 +182,8 @@ def test_reuse_keeps_embeddings_only_where_iou_alone_decides(tmp_path: Path) -> 
 
     model = fixed_batch_mars_like(tmp_path / "m.onnx")
     plain = ReID(model, threads=1)
-    reuse = ReID(model, threads=1, reuse=ReusePolicy(max_reuses=2))
+    # The thumbnail rule alone (the isolation rule is tested below).
+    reuse = ReID(model, threads=1, reuse=ReusePolicy(max_reuses=2, isolated_iou=None))
     frame1 = _texture(3)
     # A and B stand alone; C and D overlap each other (IoU 0.5): an ambiguous pair.
     boxes1 = np.array(
@@ -223,9 +224,73 @@ def test_reuse_keeps_embeddings_only_where_iou_alone_decides(tmp_path: Path) -> 
     reuse.embed(frame3, Detections.empty(), "bbox")
     reuse.embed(frame3, dets2, "bbox")
     assert reuse.embedded == before + 16
-    for bad in ({"min_iou": 0.2, "max_other_iou": 0.3}, {"max_reuses": -1}):
+    for bad in (
+        {"min_iou": 0.2, "max_other_iou": 0.3},
+        {"max_reuses": -1},
+        {"isolated_iou": 0.6},
+        {"isolated_iou": -0.1},
+    ):
         with pytest.raises(ParameterError):
             ReusePolicy(**bad)  # type: ignore[arg-type]
+
+
+def test_reuse_isolated_detections_keep_embeddings_through_small_changes(tmp_path: Path) -> None:
+    from densepeds.reid import ReusePolicy
+
+    model = fixed_batch_mars_like(tmp_path / "m.onnx")
+    plain = ReID(model, threads=1)
+    # A stands alone; B and C touch (IoU 0.034, below max_other_iou but above isolated_iou).
+    boxes = np.array([[10, 10, 40, 100], [100, 10, 130, 100], [128, 10, 158, 100]], float)
+    ones = np.ones(3, np.float32)
+    base = np.clip(_texture(20), 20, 200)
+
+    def scene(k: int) -> tuple[np.ndarray, Detections]:
+        """Frame k: everyone 2 px further right, the whole scene 8 grey levels brighter (each
+        thumbnail differs from the last frame's by 8: above max_thumb_diff, within
+        isolated_thumb_diff)."""
+        frame = (np.roll(base, 2 * k, axis=1) + 8 * k).astype(np.uint8)
+        return frame, Detections(boxes + [2 * k, 0, 2 * k, 0], ones)
+
+    def run(policy: ReusePolicy, frames: int = 4) -> list[np.ndarray]:
+        reid = ReID(model, threads=1, reuse=policy)
+        return [reid.embed(*scene(k), "bbox") for k in range(frames)]
+
+    def fresh(k: int) -> np.ndarray:
+        return plain.embed(*scene(k), "bbox")
+
+    got = run(ReusePolicy(max_reuses=2))
+    # A: computed on frame 0, kept on frames 1 and 2 (max_reuses), computed anew on frame 3.
+    np.testing.assert_array_equal(got[1][0], got[0][0])
+    np.testing.assert_array_equal(got[2][0], got[0][0])
+    np.testing.assert_allclose(got[3][0], fresh(3)[0], atol=1e-6)
+    assert not np.allclose(got[3][0], got[0][0], atol=1e-4)  # the scene did change
+    # B and C are near each other, their colours changed: embedded anew every frame.
+    for k in range(4):
+        np.testing.assert_allclose(got[k][1:], fresh(k)[1:], atol=1e-6)
+    # A looser isolation admits the touching pair; a tighter colour bound or the rule off
+    # refuses A.
+    loose = run(ReusePolicy(max_reuses=2, isolated_iou=0.1), 2)
+    np.testing.assert_array_equal(loose[1], loose[0])
+    for policy in (ReusePolicy(isolated_thumb_diff=5), ReusePolicy(isolated_iou=None)):
+        np.testing.assert_allclose(run(policy, 2)[1], fresh(1), atol=1e-6)
+    # Somebody else in A's box (its colours change entirely): A is embedded anew.
+    reid = ReID(model, threads=1, reuse=ReusePolicy())
+    reid.embed(*scene(0), "bbox")
+    frame, dets = scene(1)
+    frame[10:100, 12:42] = _texture(9)[10:100, 12:42]
+    np.testing.assert_allclose(
+        reid.embed(frame, dets, "bbox"), plain.embed(frame, dets, "bbox"), atol=1e-6
+    )
+    assert reid.reused == 0
+    # Somebody new touching A's previous box (not its current one) makes A ambiguous again.
+    reid = ReID(model, threads=1, reuse=ReusePolicy())
+    reid.embed(scene(0)[0], Detections(boxes[:1], ones[:1]), "bbox")
+    newcomer = Detections(np.array([[12, 10, 42, 100], [0, 10, 11, 100]], float), ones[:2])
+    frame = scene(1)[0]
+    np.testing.assert_allclose(
+        reid.embed(frame, newcomer, "bbox"), plain.embed(frame, newcomer, "bbox"), atol=1e-6
+    )
+    assert reid.reused == 0
 
 
 def test_smaller_input_size_runs_the_same_network_on_smaller_crops() -> None:

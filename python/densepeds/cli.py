@@ -150,9 +150,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--reid-reuse",
         action="store_true",
         help="a detection that plainly continues one of the previous frame's (it alone overlaps "
-        "it, with the same colours) keeps that re-ID embedding, for up to 4 frames in a row, "
-        "instead of a new one (densepeds.reid.ReusePolicy): less re-ID work, the tracks may "
-        "change",
+        "it, with the same colours; with nearly the same where nobody else is near) keeps that "
+        "re-ID embedding, for up to 4 frames in a row, instead of a new one "
+        "(densepeds.reid.ReusePolicy): less re-ID work, the tracks may change",
     )
     run.add_argument(
         "--motion",

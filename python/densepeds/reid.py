@@ -324,14 +324,24 @@ def _unit(rows: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
 class ReusePolicy:
     """When a detection keeps the previous frame's embedding instead of a new one.
 
-    Only where IoU alone already decides who it is: the box overlaps exactly one previous
-    detection by at least ``min_iou`` and every other box, previous or current, by at most
-    ``max_other_iou``; its 8x4 colour thumbnail differs from that detection's by at most
-    ``max_thumb_diff`` grey levels on average (someone else stepped in front: embed again);
-    and the embedding was reused fewer than ``max_reuses`` frames in a row (appearance drifts).
+    Only where IoU alone already decides who it is. Both rules need the box to overlap one
+    previous detection by at least ``min_iou``, and that embedding to have been reused fewer
+    than ``max_reuses`` frames in a row (appearance drifts: it is computed anew then). Then
+    either rule lets it keep that embedding:
+
+    - *isolated*: no other box, previous or current, overlaps the box or that previous
+      detection by more than ``isolated_iou`` (nobody is near, so appearance cannot decide
+      between candidates), and its thumbnail (below) differs by at most
+      ``isolated_thumb_diff`` (a looser bound: only a different person in the box fails it);
+      ``isolated_iou=None`` turns this rule off;
+    - *unchanged*: no other box overlaps them by more than ``max_other_iou``, and the box's
+      8x4 colour thumbnail differs from that detection's by at most ``max_thumb_diff`` grey
+      levels on average (someone else stepped in front: embed again).
     """
 
     min_iou: float = 0.6
+    isolated_iou: float | None = 0.0
+    isolated_thumb_diff: float = 10.0
     max_other_iou: float = 0.3
     max_thumb_diff: float = 6.0
     max_reuses: int = 4
@@ -341,8 +351,12 @@ class ReusePolicy:
             raise ParameterError(
                 f"need 0 <= max_other_iou < min_iou <= 1, got {self.max_other_iou}, {self.min_iou}"
             )
-        if self.max_thumb_diff < 0 or self.max_reuses < 0:
-            raise ParameterError("max_thumb_diff and max_reuses must be >= 0")
+        if self.isolated_iou is not None and not 0.0 <= self.isolated_iou < self.min_iou:
+            raise ParameterError(
+                f"need 0 <= isolated_iou < min_iou (or None), got {self.isolated_iou}"
+            )
+        if min(self.max_thumb_diff, self.isolated_thumb_diff, self.max_reuses) < 0:
+            raise ParameterError("max_thumb_diff, isolated_thumb_diff and max_reuses must be >= 0")
 
 
 THUMB_SIZE = (4, 8)  # (width, height): coarse colour layout of a person, cheap to compare
@@ -390,15 +404,13 @@ def reuse_sources(
     # Other current boxes on the chosen previous one: zero out this row's own share first.
     column = cross[:, best].copy()  # [current k, candidate i]: IoU of current k with best[i]
     column[rows, rows] = 0.0
+    # The most any other box, previous or current, overlaps this box or its previous one.
+    nearby = np.maximum.reduce([others.max(axis=1), column.max(axis=0), within.max(axis=1)])
     diff = np.abs(thumbs - prev.thumbs[best]).mean(axis=(1, 2, 3))
-    ok = (
-        (best_iou >= policy.min_iou)
-        & (others.max(axis=1) <= policy.max_other_iou)
-        & (column.max(axis=0) <= policy.max_other_iou)
-        & (within.max(axis=1) <= policy.max_other_iou)
-        & (diff <= policy.max_thumb_diff)
-        & (prev.ages[best] < policy.max_reuses)
-    )
+    allowed = (nearby <= policy.max_other_iou) & (diff <= policy.max_thumb_diff)
+    if policy.isolated_iou is not None:
+        allowed |= (nearby <= policy.isolated_iou) & (diff <= policy.isolated_thumb_diff)
+    ok = (best_iou >= policy.min_iou) & (prev.ages[best] < policy.max_reuses) & allowed
     source[ok] = best[ok]
     return source
 

@@ -35,8 +35,6 @@ def make_detector(
     starts a track; 0.5 maskrcnn). ``tiles``: 'auto', None/'none', 'CxR' or (columns, rows);
     Mask R-CNN ignores 'auto' (it upsamples internally) unless given an explicit grid.
     """
-    from densepeds.detect.maskrcnn import MaskRCNNDetector
-    from densepeds.detect.yoloseg import YoloSegDetector
     from densepeds.errors import ParameterError
     from densepeds.modelfiles import find_model
 
@@ -47,7 +45,11 @@ def make_detector(
     if score_threshold is not None:
         extra["score_threshold"] = score_threshold
     if kind == "yoloseg":
+        from densepeds.detect.yoloseg import YoloSegDetector
+
         return YoloSegDetector(path, tiles=tiles, threads=threads, **extra)  # type: ignore[arg-type]
+    from densepeds.detect.maskrcnn import MaskRCNNDetector
+
     grid = None if tiles == "auto" else tiles
     return MaskRCNNDetector(path, tiles=grid, threads=threads, **extra)  # type: ignore[arg-type]
 

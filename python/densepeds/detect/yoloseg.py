@@ -204,7 +204,12 @@ class YoloSegDetector:
 
     def prepare(self, batch_u8: npt.NDArray[np.uint8]) -> npt.NDArray[np.float32]:
         """BGR uint8 [B, H, W, 3] letterboxed views -> the model's input (RGB in [0, 1])."""
-        x = batch_u8[..., ::-1].astype(np.float32) * np.float32(1 / 255)
+        # OpenCV swaps the channels of the views stacked as one tall image (one pass), then one
+        # cast and an in-place scale.
+        views = np.ascontiguousarray(batch_u8)
+        rgb = cv2.cvtColor(views.reshape(-1, views.shape[2], 3), cv2.COLOR_BGR2RGB)
+        x = rgb.reshape(views.shape).astype(np.float32)
+        x *= np.float32(1 / 255)
         if not self.nhwc:
             x = x.transpose(0, 3, 1, 2)
         return np.ascontiguousarray(x)
