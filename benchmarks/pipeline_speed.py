@@ -91,6 +91,15 @@ def run_once(cmd: list[str], marker: str, env: dict[str, str]) -> Run:
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if proc.returncode != 0:
         raise SystemExit(f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stderr[-3000:]}")
+    if "int8 copy" in proc.stdout and "--detector-model" not in cmd:
+        # `densepeds run` takes an int8 copy from the model folders in place of the float one;
+        # the rows without --detector-model are meant to time the float copy.
+        raise SystemExit(
+            f"{' '.join(cmd)} ran an int8 copy found in the model folders "
+            f"({proc.stdout.split('int8 copy', 1)[1].split()[0]}); time without it "
+            "($DENSEPEDS_MODEL_DIR naming its folder, or the user cache) so that `ours` is the "
+            "float copy, and pass the copy with --int8"
+        )
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     return Run(wall, cpu, _stages(proc.stdout, marker))
 
