@@ -90,3 +90,23 @@ def test_rows_by_owner_counts_rows_off_the_persons_main_id() -> None:
     people = id_errors.label(rows, gt)
     got = id_errors.rows_by_owner(rows, people)
     assert got == {("fragment", "coasted"): 2}
+
+
+def test_relabelled_rows_put_each_person_under_one_id_and_drop_the_rest() -> None:
+    gt = _gt(range(1, 5), {1: 0.0, 7: 500.0})
+    # Person 1 under ids 3 then 4; person 7 under id 1 (a gt id of another person); id 9 on
+    # nobody (x 900) and id 1 on nobody in frame 4.
+    spec = [(f, 3 if f <= 2 else 4, 0.0, 0) for f in range(1, 5)]
+    spec += [(f, 1, 500.0, 1) for f in range(1, 4)] + [(4, 1, 900.0, 1)]
+    spec += [(f, 9, 900.0, -1) for f in range(1, 4)]
+    rows = _rows(spec)
+    people = id_errors.label(rows, gt)
+    perfect, no_fp = id_errors.relabelled(rows, people)
+    on = people >= 0
+    assert list(perfect[on, 1]) == list(people[on])  # every row on a person under its id
+    off_ids = set(perfect[~on, 1].astype(int))
+    assert off_ids == {1 + 8, 9 + 8}  # track ids moved past every person's (7 + 1)
+    assert not off_ids & {1, 7}
+    assert len(no_fp) == int(on.sum()) and set(no_fp[:, 1].astype(int)) == {1, 7}
+    assert np.array_equal(perfect[:, [0, 2, 3, 4, 5]], rows[:, [0, 2, 3, 4, 5]])  # same boxes
+    assert np.all(perfect[:, 6] == 1.0)
