@@ -106,6 +106,8 @@ class TrackerKwargs(TypedDict, total=False):
     motion_person_height: float
     tentative_max_age: int
     coast_aspect_quantile: float
+    amodal_width_quantile: float
+    amodal_width_coverage: float
     coast_min_hits: int
     reid_newborn: int
     reid_margin: float
@@ -171,6 +173,8 @@ class Tracker:
         motion_person_height: float = 160.0,
         tentative_max_age: int = 2,
         coast_aspect_quantile: float = 0.0,
+        amodal_width_quantile: float = 0.0,
+        amodal_width_coverage: float = 0.1,
         coast_min_hits: int = 6,
         reid_newborn: int = 4,
         reid_margin: float = 0.15,

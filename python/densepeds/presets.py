@@ -106,6 +106,9 @@ _CNN_APPEARANCE: dict[str, float | int | bool] = {
     # A lost person is reported as wide as a person seen whole in this scene (the 90% quantile
     # of the matched boxes' aspect ratios), not at the narrow width of their last, cut boxes.
     "coast_aspect_quantile": 0.9,
+    # A person partly behind a nearer one is detected narrow (a COCO-trained segmenter boxes what
+    # shows); reported as wide as the 75% quantile of the matched boxes' aspect ratios.
+    "amodal_width_quantile": 0.75,
     # A segmenter finds a person it saw with confidence again with confidence: a tentative track
     # ends at its first miss (the weak-detection wait, tentative_max_age, helps sparse det files).
     "tentative_max_age": 0,

@@ -225,6 +225,22 @@ coast_aspect_quantile   float  0.0         [0, 1]               a lost track's r
                                                                 detections (the last 2000) makes its
                                                                 height: the width of a person seen
                                                                 whole in this scene (0: off)
+amodal_width_quantile   float  0.0         [0, 1]               a matched track's reported box
+                                                                covered at least
+                                                                amodal_width_coverage by reported
+                                                                boxes nearer the camera (lower foot
+                                                                point) is at least as wide as this
+                                                                quantile of the aspect ratios of
+                                                                every track's matched detections
+                                                                makes its height: a person seen in
+                                                                part reported at the width of one
+                                                                seen whole, as MOTChallenge
+                                                                annotates them (reporting only; 0:
+                                                                off)
+amodal_width_coverage   float  0.1         [0, 1]               covered fraction (by reported boxes
+                                                                nearer the camera) of a matched
+                                                                track's reported box that widens it
+                                                                (amodal_width_quantile)
 coast_min_hits          int    6           0..=4294967295       an unmatched track is reported
                                                                 (output_lost, occluded_output) only
                                                                 once it has been matched at least

@@ -1,6 +1,7 @@
 //! Association for DensePeds: cost matrices (IoU, cosine), optimal assignment, track bookkeeping
 //! and the online [`tracker`].
 
+pub mod amodal_width;
 pub mod cost;
 pub mod crowd_aspect;
 pub mod error;

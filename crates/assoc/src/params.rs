@@ -475,6 +475,10 @@ tracker_params! {
             "frames a tentative track (not yet confirmed by n_init matches) survives unmatched; while it waits it is predicted on its own (not a neighbour in the motion model's step) and matched last, by a detection of the second pass (scored in [low_threshold, det_threshold)) at low_iou_threshold (a confident detection left over starts its own track; from a detector that thresholds its own output, as thresholded_low_iou reads it, every detection is confident), so a person seen once with confidence and then weakly, a frame or two later, is confirmed (0: a tentative track ends at its first miss)";
         coast_aspect_quantile: f64 = 0.0, UNIT,
             "a lost track's reported box is at least as wide as this quantile of the aspect ratios (width over height) of every track's matched detections (the last 2000) makes its height: the width of a person seen whole in this scene (0: off)";
+        amodal_width_quantile: f64 = 0.0, UNIT,
+            "a matched track's reported box covered at least amodal_width_coverage by reported boxes nearer the camera (lower foot point) is at least as wide as this quantile of the aspect ratios of every track's matched detections makes its height: a person seen in part reported at the width of one seen whole, as MOTChallenge annotates them (reporting only; 0: off)";
+        amodal_width_coverage: f64 = 0.1, UNIT,
+            "covered fraction (by reported boxes nearer the camera) of a matched track's reported box that widens it (amodal_width_quantile)";
         coast_min_hits: u32 = 6, ints(0, U32_MAX),
             "an unmatched track is reported (output_lost, occluded_output) only once it has been matched at least this many times (a young track lost at once is more often a false detection than a person; 0: off)";
         reid_newborn: u32 = 4, ints(0, U32_MAX),

@@ -18,6 +18,7 @@
 //! confirmed track is classified from the scene ([`crate::occlusion`]): occluded ones keep
 //! being predicted among their neighbours and reported, those that left the image are deleted.
 
+use crate::amodal_width::widen_occluded;
 use crate::cost::{centre, iou, normalise_rows, validate_boxes, BBox};
 use crate::crowd_aspect::CrowdAspect;
 use crate::jitter::JitterEstimate;
@@ -72,7 +73,8 @@ pub struct Tracker {
     perspective: Perspective,
     /// The detector's jitter against the predictions (`jitter_floor`).
     jitter: JitterEstimate,
-    /// The aspect ratios of matched detections (`coast_aspect_quantile`).
+    /// The aspect ratios of matched detections (`coast_aspect_quantile`,
+    /// `amodal_width_quantile`).
     crowd_aspect: CrowdAspect,
 }
 
@@ -571,6 +573,18 @@ impl Tracker {
             let seen: Vec<BBox> = out.iter().map(|o| o.bbox).collect();
             for o in &mut out {
                 o.bbox = complete(&o.bbox, &seen, &g, self.params.occlusion_coverage);
+            }
+        }
+        // Occluded people reported at the scene's whole width (amodal_width_quantile).
+        if let Some(a) = self
+            .crowd_aspect
+            .quantile(self.params.amodal_width_quantile)
+        {
+            let mut boxes: Vec<BBox> = out.iter().map(|o| o.bbox).collect();
+            let matched: Vec<bool> = out.iter().map(|o| o.det_index.is_some()).collect();
+            widen_occluded(&mut boxes, &matched, a, self.params.amodal_width_coverage);
+            for (o, b) in out.iter_mut().zip(boxes) {
+                o.bbox = b;
             }
         }
         out
