@@ -98,6 +98,10 @@ CANDIDATES: dict[str, dict[str, Any]] = {
     "reid_newborn 3": {"reid_newborn": 3},
     "reid_newborn 5": {"reid_newborn": 5},
     "reid_margin 0.05": {"reid_margin": 0.05},
+    "left_image_inside 0.5": {"left_image_inside": 0.5},
+    "left_image_inside 0.7": {"left_image_inside": 0.7},
+    "left_image_inside 0.85": {"left_image_inside": 0.85},
+    "left_image_inside 0.95": {"left_image_inside": 0.95},
     "reid_margin 0.3": {"reid_margin": 0.3},
     "amodal_width_quantile off": {"amodal_width_quantile": 0.0},
     "amodal_width_quantile 0.6": {"amodal_width_quantile": 0.6},
@@ -112,7 +116,8 @@ TUNED_ON = {
     "`jitter_floor`, `coast_aspect` and `motion_person_height` on all 15 cells by leave-one-out, "
     "the `/frcnn` and `/int8` ones included; `score_quantile_ceiling` by the same leave-one-out "
     "and by the 11 motion-only cells under the score maps of `score-maps.md`; "
-    "`thresholded_low_iou`, `tentative_max_age` and `coast_min_hits` by the same leave-one-out)",
+    "`thresholded_low_iou`, `tentative_max_age`, `coast_min_hits` and `left_image_inside` by the "
+    "same leave-one-out)",
     "cnn": "the two `/float` videos together (the score reading as above; "
     "`appearance_apart` and `motion_person_height` on all 15 cells by leave-one-out; "
     "`coast_aspect_state` on the two `/float` videos, checked by leave-one-out; "
@@ -124,8 +129,9 @@ TUNED_ON = {
 UNTUNED = (
     "every `/frcnn` and `/int8` cell for all but the score reading, `score_quantile_ceiling`, "
     "`max_age`, `output_lost_adaptive`, `position_smoothing`, `jitter_floor`, `coast_aspect`, "
-    "`appearance_apart`, `motion_person_height`, `thresholded_low_iou`, `tentative_max_age` "
-    "and `coast_min_hits`; the `/int8` cells for all but `reid_newborn` and `reid_margin`"
+    "`appearance_apart`, `motion_person_height`, `thresholded_low_iou`, `tentative_max_age`, "
+    "`coast_min_hits` and `left_image_inside`; the `/int8` cells for all but `reid_newborn` and "
+    "`reid_margin`"
 )
 MOTION_ROWS = ("frvo", "rvo", "sf", "cv")
 FEATURE_ROWS = ("segmented", "bbox", "masked_pool", "none")

@@ -111,6 +111,7 @@ class TrackerKwargs(TypedDict, total=False):
     coast_min_hits: int
     reid_newborn: int
     reid_margin: float
+    left_image_inside: float
     neighbor_radius: float
     max_neighbors: int
     time_horizon: float
@@ -178,6 +179,7 @@ class Tracker:
         coast_min_hits: int = 6,
         reid_newborn: int = 4,
         reid_margin: float = 0.15,
+        left_image_inside: float = 0.9,
         neighbor_radius: float = 150.0,
         max_neighbors: int = 10,
         time_horizon: float = 5.0,

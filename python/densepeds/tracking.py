@@ -156,9 +156,10 @@ output_lost_precision   float  0.33        [0, 1]               with output_lost
                                                                 MOTA)
 occluded_output         int    10          0..=4294967295       an unmatched track covered by nearer
                                                                 detections is reported up to this
-                                                                many frames; one mostly outside the
-                                                                image (set_image_size) is deleted
-                                                                (0: off)
+                                                                many frames; one whose predicted box
+                                                                is less than left_image_inside
+                                                                inside the image (set_image_size) is
+                                                                deleted (0: off)
 occlusion_coverage      float  0.5         [0, 1]               covered fraction of an unmatched
                                                                 track's predicted box that means
                                                                 occluded
@@ -263,6 +264,12 @@ reid_margin             float  0.15        [0, 2]               reid_newborn: ho
                                                                 cosine distance the chosen lost
                                                                 track must be than every other lost
                                                                 track
+left_image_inside       float  0.9         [0, 1]               an unmatched confirmed track whose
+                                                                predicted box has less than this
+                                                                share of its area inside the image
+                                                                has left it and is deleted (with the
+                                                                image size given and occluded_output
+                                                                > 0; so never in the pure method)
 neighbor_radius         float  150.0       (0, inf)             motion model: only agents closer
                                                                 than this (pixels) constrain each
                                                                 other
@@ -372,9 +379,9 @@ class Tracker:
         return Tracks(ids, out_boxes, out_scores, det_index)
 
     def set_image_size(self, width: float, height: float) -> None:
-        """The image size in pixels: an unmatched track whose predicted box lies mostly outside
-        it has left and is deleted. Without it no track is judged to have left (they live
-        ``max_age`` frames). Kept across ``reset``."""
+        """The image size in pixels: an unmatched track with less than ``left_image_inside`` of
+        its predicted box inside it has left and is deleted. Without it no track is judged to
+        have left (they live ``max_age`` frames). Kept across ``reset``."""
         try:
             self._core.set_image_size(float(width), float(height))
         except ValueError as err:

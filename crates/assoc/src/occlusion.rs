@@ -14,7 +14,7 @@ use crate::perspective::GroundMap;
 pub enum Unmatched {
     /// Its predicted box is covered by boxes nearer the camera: it is probably still there.
     Occluded,
-    /// Its predicted box lies mostly outside the image: it left.
+    /// Too little of its predicted box lies inside the image: it left.
     LeftImage,
     /// Neither: a miss of the detector, or the person is gone.
     Uncovered,
@@ -95,15 +95,17 @@ impl Scene {
 
 /// Classifies an unmatched track from its predicted box, the boxes seen this frame (`scene`:
 /// detections, the track's own excluded by the caller) and the image size when known.
-/// `min_coverage` is the covered fraction from which the track counts as occluded.
+/// `min_coverage` is the covered fraction from which the track counts as occluded, `min_inside`
+/// the fraction of the predicted box inside the image below which it left.
 pub fn classify(
     predicted: &BBox,
     scene: &Scene,
     image: Option<[f64; 2]>,
     min_coverage: f64,
+    min_inside: f64,
 ) -> Unmatched {
     if let Some(size) = image {
-        if inside_fraction(predicted, size) < 0.5 {
+        if inside_fraction(predicted, size) < min_inside {
             return Unmatched::LeftImage;
         }
     }
@@ -214,17 +216,17 @@ mod tests {
         let far = [50.0, 20.0, 80.0, 100.0];
         let near = [40.0, 10.0, 95.0, 140.0];
         assert_eq!(
-            classify(&far, &Scene::new(vec![near]), None, 0.5),
+            classify(&far, &Scene::new(vec![near]), None, 0.5, 0.5),
             Unmatched::Occluded
         );
         // The near one, unmatched, with the far one in the scene: nothing in front of it.
         assert_eq!(
-            classify(&near, &Scene::new(vec![far]), None, 0.5),
+            classify(&near, &Scene::new(vec![far]), None, 0.5, 0.5),
             Unmatched::Uncovered
         );
         // Nobody around.
         assert_eq!(
-            classify(&far, &Scene::new(vec![]), None, 0.5),
+            classify(&far, &Scene::new(vec![]), None, 0.5, 0.5),
             Unmatched::Uncovered
         );
     }
@@ -234,11 +236,11 @@ mod tests {
         let far = [0.0, 0.0, 40.0, 80.0];
         let near = [20.0, 0.0, 80.0, 120.0]; // covers the right half
         assert_eq!(
-            classify(&far, &Scene::new(vec![near]), None, 0.5),
+            classify(&far, &Scene::new(vec![near]), None, 0.5, 0.5),
             Unmatched::Occluded
         );
         assert_eq!(
-            classify(&far, &Scene::new(vec![near]), None, 0.6),
+            classify(&far, &Scene::new(vec![near]), None, 0.6, 0.5),
             Unmatched::Uncovered
         );
     }
@@ -275,11 +277,11 @@ mod tests {
         let out = [630.0, 100.0, 670.0, 200.0]; // a quarter inside
         let near = [600.0, 90.0, 700.0, 260.0];
         assert_eq!(
-            classify(&at_edge, &Scene::new(vec![near]), image, 0.5),
+            classify(&at_edge, &Scene::new(vec![near]), image, 0.5, 0.5),
             Unmatched::Occluded
         );
         assert_eq!(
-            classify(&out, &Scene::new(vec![near]), image, 0.5),
+            classify(&out, &Scene::new(vec![near]), image, 0.5, 0.5),
             Unmatched::LeftImage
         );
         assert_eq!(

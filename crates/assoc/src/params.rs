@@ -456,7 +456,7 @@ tracker_params! {
         output_lost_precision: f64 = 0.33, UNIT,
             "with output_lost_adaptive: the share of gaps re-found at the prediction needed to report a lost track (a box that is a hit with probability p raises HOTA's DetA where p > DetA / (1 + DetA), 1/3 at DetA 0.5; 0.5 for MOTA)";
         occluded_output: u32 = 10, ints(0, U32_MAX),
-            "an unmatched track covered by nearer detections is reported up to this many frames; one mostly outside the image (set_image_size) is deleted (0: off)";
+            "an unmatched track covered by nearer detections is reported up to this many frames; one whose predicted box is less than left_image_inside inside the image (set_image_size) is deleted (0: off)";
         occlusion_coverage: f64 = 0.5, UNIT,
             "covered fraction of an unmatched track's predicted box that means occluded";
         coast_damping: f64 = 1.0, UNIT,
@@ -485,6 +485,8 @@ tracker_params! {
             "deferred re-identification: when a track born while confirmed tracks were lost reaches this many matches (at least n_init), the mean of its embeddings so far is compared with those lost tracks' galleries; the nearest, if within min(appearance_threshold, appearance_apart) and nearer than every other by reid_margin, gives the new track its id from that frame on and ends (0: off)";
         reid_margin: f64 = 0.15, closed(0.0, 2.0),
             "reid_newborn: how much nearer in cosine distance the chosen lost track must be than every other lost track";
+        left_image_inside: f64 = 0.9, UNIT,
+            "an unmatched confirmed track whose predicted box has less than this share of its area inside the image has left it and is deleted (with the image size given and occluded_output > 0; so never in the pure method)";
     }
     motion {
         neighbor_radius: f64, POSITIVE,

@@ -169,8 +169,8 @@ impl Tracker {
     }
 
     /// The image size `(width, height)` in pixels: with it, an unmatched track whose predicted
-    /// box lies mostly outside the image is deleted (it left); without it, no track is judged to
-    /// have left. Kept across [`Tracker::reset`].
+    /// box lies less than `left_image_inside` inside the image is deleted (it left); without it,
+    /// no track is judged to have left. Kept across [`Tracker::reset`].
     pub fn set_image_size(&mut self, width: f64, height: f64) -> Result<(), TrackError> {
         if !(width > 0.0 && height > 0.0 && width.is_finite() && height.is_finite()) {
             return Err(TrackError::InvalidInput(format!(
@@ -434,7 +434,8 @@ impl Tracker {
                 if track_det[i].is_some() || !t.confirmed {
                     continue;
                 }
-                match classify(&t.predicted, &scene, self.image_size, p.occlusion_coverage) {
+                let (cover, inside) = (p.occlusion_coverage, p.left_image_inside);
+                match classify(&t.predicted, &scene, self.image_size, cover, inside) {
                     Unmatched::Occluded => t.occluded = true,
                     Unmatched::LeftImage => left_image[i] = true,
                     Unmatched::Uncovered => {}

@@ -453,7 +453,12 @@ fn a_track_with_nothing_in_front_is_not_kept_as_occluded() {
 /// A person walks right at 8 px/frame until their box touches the right edge of a 640 px wide
 /// image, then is no longer detected; returns the live tracks after each of 4 empty frames.
 fn walk_out(occluded_output: u32, image_size: bool) -> Vec<usize> {
-    let mut t = Tracker::new(occlusion_params(occluded_output)).unwrap();
+    // Left below half inside (the default's share is tested in tests/left_image.rs).
+    let mut t = Tracker::new(TrackerParams {
+        left_image_inside: 0.5,
+        ..occlusion_params(occluded_output)
+    })
+    .unwrap();
     if image_size {
         t.set_image_size(640.0, 480.0).unwrap();
     }
