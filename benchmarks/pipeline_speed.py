@@ -11,7 +11,8 @@ goes first: ours (`python -m densepeds run SEQ --detector yoloseg --frames A:B`,
 defaults) and `benchmarks/reference_pipeline.py` (the straightforward pipeline, on the tiles ours
 picks for the frame size). onnxruntime gets ``--threads`` intra-op threads in both (by CPU
 affinity for ours: the command is started under ``taskset`` with that many CPUs when the machine
-has more; else it is the machine's count).
+has more; else it is the machine's count; ours runs re-ID batches of up to
+``densepeds.reid.ONE_THREAD_CROPS`` crops on one).
 Prints each run's wall and CPU seconds, per-stage ms/frame and the load average, then the
 medians, re-ID's share of our frame and the ratio reference / ours. ``--profile`` adds an
 in-process pass of our pipeline that splits detection into preprocessing, inference, box
@@ -21,8 +22,10 @@ else at the defaults. ``--int8 FILE`` adds `densepeds run --detector-model FILE`
 detector's int8 copy made by `densepeds models quantize` (densepeds.quantize), on the default
 tiles and on the grid; ``--skip K`` adds the int8 copy on the grid with a full scan every K-th
 frame only (`densepeds run --full-scan-every K`). ``--only NAME...`` times only those pipelines
-beside the reference. ``--memory`` appends `benchmarks/memory.py`'s table; ``--write`` writes the
-whole report as Markdown. Figures only: nothing is asserted.
+beside the reference; ``--seq``/``--frames`` one video alone. ``--wait-quiet S`` starts each timed
+run once other processes leave the CPUs (waiting at most S seconds; on a shared machine).
+``--memory`` appends `benchmarks/memory.py`'s table; ``--write`` writes the whole report as
+Markdown. Figures only: nothing is asserted.
 """
 
 from __future__ import annotations
@@ -134,6 +137,12 @@ def profile(seq_dir: Path, frames: str, threads: int) -> dict[str, float]:
     return out
 
 
+def _one_thread_crops() -> int:
+    from densepeds import reid
+
+    return int(getattr(reid, "ONE_THREAD_CROPS", 0))
+
+
 def reference_tiles(seq_dir: Path) -> str:
     """The fixed grid of tiles the reference runs on for the sequence's frame size (`ours on the
     grid` gets the same), as ``densepeds run --tiles`` takes it."""
@@ -211,12 +220,13 @@ def compare(
     for rep in range(args.repeats):
         order = names if rep % 2 == 0 else names[::-1]
         for name in order:
+            waited = wait_quiet(args.wait_quiet) if args.wait_quiet else None
             r = run_once(cmds[name], markers[name], env)
             runs[name].append(r)
             stages = ", ".join(f"{k} {v:.1f}" for k, v in r.stages.items())
             say(
                 f"repeat {rep + 1} {name:9s}: wall {r.wall:.1f} s, cpu {r.cpu:.1f} s "
-                f"({stages} ms/frame); load {_load()}"
+                f"({stages} ms/frame); load {_load()}" + _waited(waited)
             )
     say("```")
     med = {
@@ -242,7 +252,8 @@ def compare(
         say(f"Speed-up, reference / {name}: **{ratio:.2f}x wall**, {cpu_ratio:.2f}x CPU time.")
     say("")
     say(
-        f"Features {features}; onnxruntime threads {args.threads}; "
+        f"Features {features}; onnxruntime threads {args.threads} (ours: re-ID batches of up to "
+        f"{_one_thread_crops()} crops on one); "
         f"{'pinned with ' + ' '.join(pin) if pin else 'not pinned'}; "
         f"{len(os.sched_getaffinity(0))} CPUs; load average after {_load()}."
     )
@@ -272,6 +283,34 @@ def _cpu_name() -> str:
     except OSError:
         pass
     return platform.processor() or platform.machine()
+
+
+def _runnable_others(seconds: float = 2.0, samples: int = 10) -> float:
+    """Mean count of other runnable processes over ``seconds`` (/proc/loadavg's running
+    count, less this one)."""
+    total = 0
+    for _ in range(samples):
+        with open("/proc/loadavg", encoding="ascii") as f:
+            total += int(f.read().split()[3].split("/")[0]) - 1
+        time.sleep(seconds / samples)
+    return total / samples
+
+
+def wait_quiet(limit: float, threshold: float = 0.5) -> tuple[float, float]:
+    """Waits (at most ``limit`` seconds) until fewer than ``threshold`` other processes are
+    runnable on average over 2 s; (seconds waited, that average at the start of the run)."""
+    start = time.perf_counter()
+    while True:
+        others = _runnable_others()
+        waited = time.perf_counter() - start
+        if others < threshold or waited >= limit:
+            return waited, others
+
+
+def _waited(waited: tuple[float, float] | None) -> str:
+    if waited is None:
+        return ""
+    return f"; started after {waited[0]:.0f} s, {waited[1]:.1f} other processes runnable"
 
 
 def _load() -> str:
@@ -310,6 +349,13 @@ def main() -> int:
         metavar="K",
         help="with --int8: also time it on the grid with a full scan every K-th frame only "
         "(between, the tiles showing somebody; YoloSegDetector full_scan_every)",
+    )
+    ap.add_argument(
+        "--wait-quiet",
+        type=float,
+        metavar="SECONDS",
+        help="before each timed run, wait up to SECONDS until other processes leave the CPUs "
+        "(fewer than 0.5 runnable on average over 2 s; the line says how long it waited)",
     )
     ap.add_argument("--memory", action="store_true", help="also run benchmarks/memory.py")
     ap.add_argument(

@@ -25,6 +25,10 @@ from densepeds.segment import bbox_crop, crops_for, person_masks
 from densepeds.types import Detections
 
 DEFAULT_MODEL = "osnet_x0_25_msmt17.onnx"
+# Crops per call up to which the network runs on one onnxruntime thread when ``threads`` is not
+# given: a few small crops gain nothing from a second thread (its wake-ups per layer cost what
+# the split saves) and it competes with the rest of the process; larger batches use every CPU.
+ONE_THREAD_CROPS = 8
 POOL_FLOOR = 0.1  # weight of a background cell in mask-weighted pooling (person cells: 1)
 
 
@@ -71,7 +75,10 @@ def guess_kind(layout: str, dtype: str) -> str:
 class ReID:
     """Appearance embedder. ``embed(frame, dets, features)`` -> float32 [N, D], unit rows.
 
-    ``flip``: each row is the mean of the crop's and its mirror's embeddings (twice the work);
+    ``threads``: onnxruntime's threads; None (default) runs batches of up to
+    ``ONE_THREAD_CROPS`` crops on one thread and larger ones on every CPU (the same embeddings
+    bitwise: tests/test_reid_threads.py). ``flip``: each row is the mean of the crop's and its
+    mirror's embeddings (twice the work);
     ``context``: crops grow by this fraction of the box's width and height on each side. Both
     are off by default: neither raised the tracked HOTA on the real videos
     (``benchmarks/results/reid-quality.md``).
@@ -101,9 +108,11 @@ class ReID:
         self.path: Path = path
         self.batch_size = batch_size
         self.input_size = input_size
+        self.threads = threads
         self.session, self.rewritten = onnxutil.batched_session(
-            path, threads, input_size=input_size
+            path, 1 if threads is None else threads, input_size=input_size
         )
+        self._wide: ort.InferenceSession | None = None  # threads=None: larger batches
         inputs = onnxutil.specs(self.session.get_inputs())
         outputs = onnxutil.specs(self.session.get_outputs())
         if len(inputs) != 1 or len(inputs[0].shape) != 4 or len(outputs) < 1:
@@ -137,7 +146,6 @@ class ReID:
         self.input_name = inputs[0].name
         self._raw_shape: tuple[int, ...] | None = None  # the network's last output shape
         self.dim = self._probe_dim()
-        self.threads = threads
         self._pooled: tuple[ort.InferenceSession, tuple[int, int]] | None = None
         policy = ReusePolicy() if reuse is True else reuse or None
         self.reuse: ReusePolicy | None = policy
@@ -175,12 +183,25 @@ class ReID:
             self._pooled = (onnxutil.make_session(pooled, self.threads), size)
         return self._pooled
 
+    def _session_for(self, crops: int) -> ort.InferenceSession:
+        """The session that runs a batch of ``crops`` (see ``threads``)."""
+        if self.threads is not None or crops <= ONE_THREAD_CROPS:
+            return self.session
+        if self._wide is None:
+            if onnxutil.available_cpus() == 1:
+                self._wide = self.session
+            else:
+                self._wide, _ = onnxutil.batched_session(
+                    self.path, None, input_size=self.input_size
+                )
+        return self._wide
+
     def _run(
         self, batch_bgr: npt.NDArray[np.uint8], weights: npt.NDArray[np.float32] | None = None
     ) -> npt.NDArray[np.float32]:
         feed: dict[str, np.ndarray] = {self.input_name: self._input(batch_bgr)}
         if weights is None:
-            out = self.session.run(None, feed)[0]
+            out = self._session_for(len(batch_bgr)).run(None, feed)[0]
         else:
             session, _ = self._pooled_session()
             feed[onnxutil.POOL_WEIGHTS] = weights

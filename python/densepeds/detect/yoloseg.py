@@ -347,7 +347,7 @@ class YoloSegDetector:
         mask_boxes[:, 2:] = np.ceil(boxes[:, 2:])
         np.clip(mask_boxes, 0, [width, height, width, height], out=mask_boxes)
         masks: list[npt.NDArray[np.bool_]] = [np.zeros((0, 0), bool)] * len(boxes)
-        for k in np.unique(view_idx):
+        for k in sorted(set(view_idx.tolist())):  # np.unique would import numpy.ma at start-up
             proto = protos[k] if self.proto_nhwc else protos[k].transpose(1, 2, 0)
             ph, pw = proto.shape[:2]
             v = views[k]
