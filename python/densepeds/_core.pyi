@@ -112,7 +112,6 @@ class TrackerKwargs(TypedDict, total=False):
     reid_newborn: int
     reid_margin: float
     left_image_inside: float
-    direction_weight: float
     neighbor_radius: float
     max_neighbors: int
     time_horizon: float
@@ -181,7 +180,6 @@ class Tracker:
         reid_newborn: int = 4,
         reid_margin: float = 0.15,
         left_image_inside: float = 0.9,
-        direction_weight: float = 0.0,
         neighbor_radius: float = 150.0,
         max_neighbors: int = 10,
         time_horizon: float = 5.0,

@@ -270,18 +270,6 @@ left_image_inside       float  0.9         [0, 1]               an unmatched con
                                                                 has left it and is deleted (with the
                                                                 image size given and occluded_output
                                                                 > 0; so never in the pure method)
-direction_weight        float  0.0         [0, 1]               direction consistency in the IoU
-                                                                stages: a track's observed direction
-                                                                (its matched centres 3 frames apart)
-                                                                against the direction from its last
-                                                                observed centre to a detection; an
-                                                                angle a lowers the pair's cost 1 -
-                                                                IoU by direction_weight * (1 - a /
-                                                                pi) (directions shorter than the
-                                                                detector's mean innovation are
-                                                                neutral, half the weight; matching
-                                                                still needs the IoU threshold; 0:
-                                                                off)
 neighbor_radius         float  150.0       (0, inf)             motion model: only agents closer
                                                                 than this (pixels) constrain each
                                                                 other

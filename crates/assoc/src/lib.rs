@@ -4,7 +4,6 @@
 pub mod amodal_width;
 pub mod cost;
 pub mod crowd_aspect;
-pub mod direction;
 pub mod error;
 pub mod jitter;
 pub mod lap;

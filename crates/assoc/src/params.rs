@@ -487,8 +487,6 @@ tracker_params! {
             "reid_newborn: how much nearer in cosine distance the chosen lost track must be than every other lost track";
         left_image_inside: f64 = 0.9, UNIT,
             "an unmatched confirmed track whose predicted box has less than this share of its area inside the image has left it and is deleted (with the image size given and occluded_output > 0; so never in the pure method)";
-        direction_weight: f64 = 0.0, closed(0.0, 1.0),
-            "direction consistency in the IoU stages: a track's observed direction (its matched centres 3 frames apart) against the direction from its last observed centre to a detection; an angle a lowers the pair's cost 1 - IoU by direction_weight * (1 - a / pi) (directions shorter than the detector's mean innovation are neutral, half the weight; matching still needs the IoU threshold; 0: off)";
     }
     motion {
         neighbor_radius: f64, POSITIVE,
@@ -534,8 +532,7 @@ impl TrackerParams {
     /// jitter_floor=0, thresholded_low_iou=1, output_lost=0, occluded_output=0,
     /// score_scale="absolute", score_quantile_floor=0, score_quantile_ceiling=0,
     /// motion_person_height=0, coast_aspect=False, coast_aspect_quantile=0,
-    /// coast_min_hits=0, tentative_max_age=0, reid_newborn=0, direction_weight=0`. Other fields keep
-    /// their defaults.
+    /// coast_min_hits=0, tentative_max_age=0, reid_newborn=0`. Other fields keep their defaults.
     pub fn pure() -> Self {
         Self {
             score_scale: ScoreScale::Absolute,
@@ -557,7 +554,6 @@ impl TrackerParams {
             motion_person_height: 0.0,
             tentative_max_age: 0,
             reid_newborn: 0,
-            direction_weight: 0.0,
             ..Self::default()
         }
     }

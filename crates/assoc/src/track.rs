@@ -265,21 +265,6 @@ impl Track {
         self.det_index = None;
     }
 
-    /// Direction consistency (`direction_weight`): two observed centres, the latest one at least
-    /// `span` frames before the last observation (the oldest, if none is) and the last (`None`
-    /// with a single observation).
-    pub fn observed_span(&self, span: u64) -> Option<(Vector2<f64>, Vector2<f64>)> {
-        let &(f1, c1, _) = self.history.back()?;
-        let mut from = None;
-        for &(f, c, _) in self.history.iter().rev().skip(1) {
-            from = Some(c);
-            if f + span <= f1 {
-                break;
-            }
-        }
-        from.map(|c0| (c0, c1))
-    }
-
     pub fn has_gallery(&self) -> bool {
         self.gallery.rows > 0
     }
@@ -500,31 +485,6 @@ mod tests {
         assert!((a.gallery_distance(&b) - want).abs() < 1e-6);
         assert!((b.gallery_distance(&a) - want).abs() < 1e-6);
         assert_eq!(a.gallery_distance(&track(&[])), 1.0);
-    }
-
-    #[test]
-    fn observed_span_starts_at_the_latest_centre_span_frames_back() {
-        let p = TrackerParams::default();
-        let at = |x: f64| [x - 5.0, 0.0, x + 5.0, 20.0];
-        let mut t = Track::new(0, at(0.0), 1.0, 1, None, 3);
-        assert_eq!(t.observed_span(3), None);
-        t.apply_match(0, at(10.0), 1.0, 2, None, 0.0, &p);
-        // Younger than the span: from the oldest observation.
-        assert_eq!(
-            t.observed_span(3),
-            Some((to_vec([0.0, 10.0]), to_vec([10.0, 10.0])))
-        );
-        // Frames 4 and 7 (5 and 6 missed): frame 4 is the latest at least 3 frames before 7.
-        t.apply_match(0, at(20.0), 1.0, 4, None, 0.0, &p);
-        t.apply_match(0, at(50.0), 1.0, 7, None, 0.0, &p);
-        assert_eq!(
-            t.observed_span(3),
-            Some((to_vec([20.0, 10.0]), to_vec([50.0, 10.0])))
-        );
-        assert_eq!(
-            t.observed_span(4),
-            Some((to_vec([10.0, 10.0]), to_vec([50.0, 10.0])))
-        );
     }
 
     #[test]

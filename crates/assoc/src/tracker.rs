@@ -21,7 +21,6 @@
 use crate::amodal_width::widen_occluded;
 use crate::cost::{centre, iou, normalise_rows, validate_boxes, BBox};
 use crate::crowd_aspect::CrowdAspect;
-use crate::direction::{DirectionTerm, DIRECTION_SPAN};
 use crate::jitter::JitterEstimate;
 use crate::lap::{Edge, SparseMatcher};
 use crate::lost_report::LostReport;
@@ -310,8 +309,6 @@ impl Tracker {
         }
 
         // Stage 2: IoU of predicted boxes with the remaining high-score detections.
-        // Direction consistency (`direction_weight`): a bonus off every IoU stage's cost.
-        let direction = DirectionTerm::new(p.direction_weight, self.jitter.mean());
         let iou_edges = |tracks: &[Track],
                          track_det: &[Option<usize>],
                          det_track: &[Option<usize>],
@@ -326,10 +323,6 @@ impl Tracker {
                     continue;
                 }
                 let tb = track_box(t);
-                let span = direction
-                    .is_on()
-                    .then(|| t.observed_span(DIRECTION_SPAN))
-                    .flatten();
                 let c = centre(&tb);
                 let r = p.gate_radius * t.h;
                 let half = (0.5 * (tb[2] - tb[0]) + index.max_half_w).min(r);
@@ -339,11 +332,10 @@ impl Tracker {
                     }
                     let o = iou(&tb, &dets[j]);
                     if o > 0.0 && o >= min_iou {
-                        let bonus = direction.bonus(span, t.h, &dets[j]);
                         edges.push(Edge {
                             row: i,
                             col: j,
-                            cost: 1.0 - o - bonus,
+                            cost: 1.0 - o,
                         });
                     }
                 }
