@@ -8,28 +8,25 @@
 //! about its own centre. Reporting only: the track's state and its matching are unchanged.
 
 use crate::cost::{box_from_centre, centre, BBox};
-use crate::occlusion::{covered_fraction, nearer};
+use crate::occlusion::{covered_fraction, nearer, Scene};
 
 /// Widens in place every box of `boxes` marked in `matched` that is covered at least
 /// `min_coverage` by the other boxes of `boxes` nearer the camera and narrower than `aspect`
 /// (width over height) makes its height. The coverage is measured on the boxes as given.
 pub fn widen_occluded(boxes: &mut [BBox], matched: &[bool], aspect: f64, min_coverage: f64) {
-    let seen: Vec<BBox> = boxes.to_vec();
-    for (i, b) in boxes.iter_mut().enumerate() {
-        if !matched[i] {
-            continue;
-        }
-        let (w, h) = (b[2] - b[0], b[3] - b[1]);
+    let scene = Scene::new(boxes.to_vec());
+    for (b, _) in boxes.iter_mut().zip(matched).filter(|(_, &m)| m) {
+        let target = *b;
+        let (w, h) = (target[2] - target[0], target[3] - target[1]);
         let whole = aspect * h;
         if !(whole > w && whole.is_finite()) {
             continue;
         }
-        let target = seen[i];
-        let front: Vec<BBox> = seen
-            .iter()
-            .enumerate()
-            .filter(|&(k, o)| k != i && nearer(o, &target))
-            .map(|(_, o)| *o)
+        // A box is never nearer than itself, so the scene needs no exclusion of it.
+        let front: Vec<BBox> = scene
+            .overlapping(&target)
+            .filter(|o| nearer(o, &target))
+            .copied()
             .collect();
         if covered_fraction(&target, &front) >= min_coverage {
             *b = box_from_centre(centre(&target), whole, h);
