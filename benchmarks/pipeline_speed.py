@@ -11,8 +11,8 @@ goes first: ours (`python -m densepeds run SEQ --detector yoloseg --frames A:B`,
 defaults) and `benchmarks/reference_pipeline.py` (the straightforward pipeline, on the tiles ours
 picks for the frame size). onnxruntime gets ``--threads`` intra-op threads in both (by CPU
 affinity for ours: the command is started under ``taskset`` with that many CPUs when the machine
-has more; else it is the machine's count; ours runs re-ID batches of up to
-``densepeds.reid.ONE_THREAD_CROPS`` crops on one).
+has more; else it is the machine's count; ours splits the detector's views and the re-ID
+crops one part per CPU, each part on one thread: ``densepeds.detect.split_batch``).
 Prints each run's wall and CPU seconds, per-stage ms/frame and the load average, then the
 medians, re-ID's share of our frame and the ratio reference / ours. ``--profile`` adds an
 in-process pass of our pipeline that splits detection into preprocessing, inference, box
@@ -137,12 +137,6 @@ def profile(seq_dir: Path, frames: str, threads: int) -> dict[str, float]:
     return out
 
 
-def _one_thread_crops() -> int:
-    from densepeds import reid
-
-    return int(getattr(reid, "ONE_THREAD_CROPS", 0))
-
-
 def reference_tiles(seq_dir: Path) -> str:
     """The fixed grid of tiles the reference runs on for the sequence's frame size (`ours on the
     grid` gets the same), as ``densepeds run --tiles`` takes it."""
@@ -252,8 +246,8 @@ def compare(
         say(f"Speed-up, reference / {name}: **{ratio:.2f}x wall**, {cpu_ratio:.2f}x CPU time.")
     say("")
     say(
-        f"Features {features}; onnxruntime threads {args.threads} (ours: re-ID batches of up to "
-        f"{_one_thread_crops()} crops on one); "
+        f"Features {features}; onnxruntime threads {args.threads} (ours: views and crops split "
+        "one part per CPU, each on one thread); "
         f"{'pinned with ' + ' '.join(pin) if pin else 'not pinned'}; "
         f"{len(os.sched_getaffinity(0))} CPUs; load average after {_load()}."
     )

@@ -1,15 +1,17 @@
-"""Re-ID's onnxruntime thread choice: small batches on one thread, larger ones on every CPU,
-with bitwise the same embeddings either way."""
+"""Re-ID's onnxruntime threads: by default each batch is split into one part per CPU, each part
+run on one thread, all at once; the embeddings are bitwise those of one call on any thread count."""
 
 from __future__ import annotations
 
+import threading
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 from conftest import shared_path
 from densepeds import reid as reid_module
-from densepeds.reid import ONE_THREAD_CROPS, ReID
+from densepeds.reid import ReID
 from test_reid import fixed_batch_mars_like
 
 
@@ -21,27 +23,46 @@ def _crops(count: int, seed: int) -> list[np.ndarray]:
     ]
 
 
-def test_small_batches_run_on_one_thread_and_larger_ones_on_every_cpu(
+class _Recording:
+    """Wraps a session: records each call's batch size and the thread that ran it."""
+
+    def __init__(self, session: Any) -> None:
+        self.session = session
+        self.calls: list[tuple[int, int]] = []
+        self.lock = threading.Lock()
+
+    def run(self, names: Any, feed: dict[str, np.ndarray]) -> Any:
+        with self.lock:
+            self.calls.append((len(next(iter(feed.values()))), threading.get_ident()))
+        return self.session.run(names, feed)
+
+
+def test_default_splits_each_batch_one_part_per_cpu_on_one_thread_sessions(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.setattr(reid_module.onnxutil, "available_cpus", lambda: 2)
     reid = ReID(fixed_batch_mars_like(tmp_path / "m.onnx"), batch_size=64)
-    threads = reid.session.get_session_options().intra_op_num_threads
-    assert threads == 1
-    reid.embed_crops(_crops(ONE_THREAD_CROPS, 1))
-    assert reid._wide is None  # nothing made for larger batches until one comes
-    reid.embed_crops(_crops(ONE_THREAD_CROPS + 1, 2))
-    assert reid._wide is not None
-    assert reid._wide.get_session_options().intra_op_num_threads == 2
-    # Threads given: one session for every batch.
+    assert reid.session.get_session_options().intra_op_num_threads == 1
+    rec = _Recording(reid.session)
+    reid.session = rec  # type: ignore[assignment]
+    crops = _crops(9, 2)
+    split = reid.embed_crops(crops)
+    assert sorted(n for n, _ in rec.calls) == [4, 5]
+    assert all(t != threading.get_ident() for _, t in rec.calls)  # run on the pool's threads
+    rec.calls.clear()
+    reid.embed_crops(crops[:1])  # one crop: one call on the calling thread
+    assert rec.calls == [(1, threading.get_ident())]
+    # Threads given: one call per batch on that many threads, the same rows.
     fixed = ReID(fixed_batch_mars_like(tmp_path / "m2.onnx"), threads=2, batch_size=64)
-    fixed.embed_crops(_crops(ONE_THREAD_CROPS + 5, 3))
-    assert fixed._wide is None
     assert fixed.session.get_session_options().intra_op_num_threads == 2
+    rec2 = _Recording(fixed.session)
+    fixed.session = rec2  # type: ignore[assignment]
+    assert np.array_equal(fixed.embed_crops(crops), split)
+    assert [n for n, _ in rec2.calls] == [9]
 
 
-@pytest.mark.parametrize("count", [1, 5, ONE_THREAD_CROPS, ONE_THREAD_CROPS + 1, 24])
-def test_osnet_embeddings_bitwise_the_same_on_one_thread_or_two(count: int) -> None:
+@pytest.mark.parametrize("count", [1, 2, 5, 9, 24, 40])
+def test_osnet_embeddings_bitwise_the_same_split_or_on_one_thread_or_two(count: int) -> None:
     model = shared_path("models", "osnet_x0_25_msmt17.onnx")
     crops = _crops(count, count)
     default = ReID(model).embed_crops(crops)
@@ -49,3 +70,13 @@ def test_osnet_embeddings_bitwise_the_same_on_one_thread_or_two(count: int) -> N
     two = ReID(model, threads=2).embed_crops(crops)
     assert default.shape == (count, 512) and np.isfinite(default).all()
     assert np.array_equal(default, one) and np.array_equal(default, two)
+
+
+def test_masked_pool_embeddings_bitwise_the_same_split_or_in_one_call() -> None:
+    model = shared_path("models", "osnet_x0_25_msmt17.onnx")
+    crops = _crops(7, 11)
+    rng = np.random.default_rng(3)
+    masks = [rng.random(c.shape[:2]) > 0.4 for c in crops]
+    default = ReID(model).embed_crops(crops, masks)
+    two = ReID(model, threads=2).embed_crops(crops, masks)
+    assert np.isfinite(default).all() and np.array_equal(default, two)

@@ -17,7 +17,7 @@ import numpy as np
 import numpy.typing as npt
 import onnxruntime as ort
 
-from densepeds.detect import onnxutil
+from densepeds.detect import onnxutil, split_batch
 from densepeds.errors import ModelError, ParameterError
 from densepeds.frames import check_frame
 from densepeds.modelfiles import find_model
@@ -25,10 +25,6 @@ from densepeds.segment import bbox_crop, crops_for, person_masks
 from densepeds.types import Detections
 
 DEFAULT_MODEL = "osnet_x0_25_msmt17.onnx"
-# Crops per call up to which the network runs on one onnxruntime thread when ``threads`` is not
-# given: a few small crops gain nothing from a second thread (its wake-ups per layer cost what
-# the split saves) and it competes with the rest of the process; larger batches use every CPU.
-ONE_THREAD_CROPS = 8
 POOL_FLOOR = 0.1  # weight of a background cell in mask-weighted pooling (person cells: 1)
 
 
@@ -75,10 +71,10 @@ def guess_kind(layout: str, dtype: str) -> str:
 class ReID:
     """Appearance embedder. ``embed(frame, dets, features)`` -> float32 [N, D], unit rows.
 
-    ``threads``: onnxruntime's threads; None (default) runs batches of up to
-    ``ONE_THREAD_CROPS`` crops on one thread and larger ones on every CPU (the same embeddings
-    bitwise: tests/test_reid_threads.py). ``flip``: each row is the mean of the crop's and its
-    mirror's embeddings (twice the work);
+    ``threads``: onnxruntime's threads per call; None (default) splits each batch into one part
+    per CPU, each part run on one thread, all at once (:mod:`densepeds.detect.split_batch`; the
+    same embeddings bitwise: tests/test_reid_threads.py). ``flip``: each row is the mean of the
+    crop's and its mirror's embeddings (twice the work);
     ``context``: crops grow by this fraction of the box's width and height on each side. Both
     are off by default: neither raised the tracked HOTA on the real videos
     (``benchmarks/results/reid-quality.md``).
@@ -112,7 +108,6 @@ class ReID:
         self.session, self.rewritten = onnxutil.batched_session(
             path, 1 if threads is None else threads, input_size=input_size
         )
-        self._wide: ort.InferenceSession | None = None  # threads=None: larger batches
         inputs = onnxutil.specs(self.session.get_inputs())
         outputs = onnxutil.specs(self.session.get_outputs())
         if len(inputs) != 1 or len(inputs[0].shape) != 4 or len(outputs) < 1:
@@ -180,32 +175,20 @@ class ReID:
             if onnxutil.has_fixed_batch(model) or self.input_size is not None:
                 model = onnxutil.with_dynamic_batch(model)
             pooled, size = onnxutil.with_weighted_final_pool(model)
-            self._pooled = (onnxutil.make_session(pooled, self.threads), size)
+            threads = 1 if self.threads is None else self.threads
+            self._pooled = (onnxutil.make_session(pooled, threads), size)
         return self._pooled
-
-    def _session_for(self, crops: int) -> ort.InferenceSession:
-        """The session that runs a batch of ``crops`` (see ``threads``)."""
-        if self.threads is not None or crops <= ONE_THREAD_CROPS:
-            return self.session
-        if self._wide is None:
-            if onnxutil.available_cpus() == 1:
-                self._wide = self.session
-            else:
-                self._wide, _ = onnxutil.batched_session(
-                    self.path, None, input_size=self.input_size
-                )
-        return self._wide
 
     def _run(
         self, batch_bgr: npt.NDArray[np.uint8], weights: npt.NDArray[np.float32] | None = None
     ) -> npt.NDArray[np.float32]:
         feed: dict[str, np.ndarray] = {self.input_name: self._input(batch_bgr)}
-        if weights is None:
-            out = self._session_for(len(batch_bgr)).run(None, feed)[0]
-        else:
+        session = self.session
+        if weights is not None:
             session, _ = self._pooled_session()
             feed[onnxutil.POOL_WEIGHTS] = weights
-            out = session.run(None, feed)[0]
+        parts = split_batch.parts_for(len(batch_bgr)) if self.threads is None else 1
+        out = split_batch.run_split(session, feed, parts)[0]
         self._raw_shape = np.shape(out)
         return np.asarray(out, np.float32).reshape(len(batch_bgr), -1)
 

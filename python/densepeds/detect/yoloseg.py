@@ -17,8 +17,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 import numpy.typing as npt
+import onnxruntime as ort
 
-from densepeds.detect import onnxutil
+from densepeds.detect import onnxutil, split_batch
 from densepeds.detect.tiling import (
     PeopleTiles,
     SkipSchedule,
@@ -136,9 +137,14 @@ class YoloSegDetector:
         self.source = model
         self.path = choose_model(model, quantized)
         self.quantized = is_quantized_copy(self.path)
+        self.threads = threads
+        self.dequantize = dequantize and not self.quantized
+        # threads=None: views split one part per CPU, each on one thread (split_batch); a batch
+        # of fewer views than CPUs runs as one call on every CPU (_wide, made when first needed).
         self.session, self.rewritten = onnxutil.batched_session(
-            self.path, threads, dequantize=dequantize and not self.quantized
+            self.path, 1 if threads is None else threads, dequantize=self.dequantize
         )
+        self._wide: ort.InferenceSession | None = None
         self.batch_views = batch_views
         # Seconds spent per stage (preprocess, inference, boxes, masks), for benchmarks.
         self.stage_seconds: dict[str, float] = {}
@@ -218,12 +224,32 @@ class YoloSegDetector:
         """batch_u8: BGR uint8 [B, H, W, 3] letterboxed views -> (predictions, prototypes)."""
         x = self.prepare(batch_u8)
         if self.batch_views:
-            out = self.session.run(None, {self.input_name: x})
+            out = self._run_views(x)
             return out[self.pred_index], out[self.proto_index]
-        parts = [self.session.run(None, {self.input_name: x[i : i + 1]}) for i in range(len(x))]
+        session = self._wide_session() if self.threads is None else self.session
+        parts = [session.run(None, {self.input_name: x[i : i + 1]}) for i in range(len(x))]
         preds = np.concatenate([p[self.pred_index] for p in parts])
         protos = np.concatenate([p[self.proto_index] for p in parts])
         return preds, protos
+
+    def _run_views(self, x: npt.NDArray[np.float32]) -> list[np.ndarray]:
+        """The model on a batch of views: split one part per CPU with ``threads`` None (one call
+        on every CPU for fewer views than CPUs), else one call on ``threads`` threads."""
+        feed = {self.input_name: x}
+        if self.threads is not None:
+            return list(self.session.run(None, feed))
+        parts = split_batch.parts_for(len(x))
+        if parts < onnxutil.available_cpus():
+            return list(self._wide_session().run(None, feed))
+        return split_batch.run_split(self.session, feed, parts)
+
+    def _wide_session(self) -> ort.InferenceSession:
+        """The model on every CPU in one call (``threads`` None, a batch too small to split)."""
+        if onnxutil.available_cpus() == 1:
+            return self.session
+        if self._wide is None:
+            self._wide, _ = onnxutil.batched_session(self.path, None, dequantize=self.dequantize)
+        return self._wide
 
     # --- detection --------------------------------------------------------------------------
     def views(self, width: int, height: int) -> list[_View]:
