@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -26,22 +25,20 @@ class _Echo:
 
 
 @pytest.mark.parametrize(
-    ("items", "parts", "sizes"), [(7, 2, [3, 4]), (5, 3, [2, 1, 2]), (2, 4, [1, 1])]
+    ("items", "cpus", "sizes"),
+    [(8, 2, [4, 4]), (7, 2, [3, 3, 1]), (5, 4, [1, 1, 1, 1, 1]), (3, 4, [3]), (3, 1, [3])],
 )
-def test_parts_are_near_equal_and_outputs_concatenate_in_order(
-    items: int, parts: int, sizes: list[int]
+def test_parts_are_equal_one_per_cpu_and_the_rest_runs_after(
+    monkeypatch: pytest.MonkeyPatch, items: int, cpus: int, sizes: list[int]
 ) -> None:
+    monkeypatch.setattr(split_batch.onnxutil, "available_cpus", lambda: cpus)
     session = _Echo()
     x = np.arange(items * 3, dtype=np.float32).reshape(items, 3)
-    doubled, batch = split_batch.run_split(session, {"x": x}, parts)  # type: ignore[arg-type]
-    assert np.array_equal(doubled, 2 * x)
+    doubled, batch = split_batch.run_split(session, {"x": x})  # type: ignore[arg-type]
+    assert np.array_equal(doubled, 2 * x)  # in order
     assert sorted(session.sizes) == sorted(sizes)
-    assert sorted(batch[:, 0].tolist()) == sorted(s for s in sizes for _ in range(s))
-
-
-def test_parts_follow_the_cpus(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(split_batch.onnxutil, "available_cpus", lambda: 4)
-    assert [split_batch.parts_for(n) for n in (0, 1, 3, 4, 9)] == [1, 1, 3, 4, 4]
+    assert session.sizes[-1] == sizes[-1]  # the rest last
+    assert batch[:, 0].tolist() == [s for s in sizes for _ in range(s)]
 
 
 def test_a_forked_child_makes_its_own_pool() -> None:
@@ -51,7 +48,7 @@ def test_a_forked_child_makes_its_own_pool() -> None:
     pid = os.fork()
     if pid == 0:  # the child: the pool works and is not the parent's
         try:
-            out = split_batch.run_split(_Echo(), {"x": np.ones((4, 2), np.float32)}, 2)[0]
+            out = split_batch.run_split(_Echo(), {"x": np.ones((4, 2), np.float32)})[0]
             ok = split_batch.cpu_pool() is not parent and float(out.sum()) == 16.0
             os.write(write, b"1" if ok else b"0")
         finally:
@@ -76,12 +73,13 @@ def test_detections_bitwise_the_same_split_or_in_one_call(dequantize: bool) -> N
         assert all(np.array_equal(m, n) for m, n in zip(a.masks, b.masks, strict=True))
 
 
-def test_a_batch_smaller_than_the_cpus_runs_as_one_call_on_every_cpu(tmp_path: Path) -> None:
+def test_views_that_do_not_divide_evenly_run_as_one_call_on_every_cpu(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     yolo = shared_path("models", "yolov8n-seg-320-int8.onnx")
+    monkeypatch.setattr(split_batch.onnxutil, "available_cpus", lambda: 2)
     det = YoloSegDetector(yolo, tiles="none", quantized=False)
     frame = np.full((240, 320, 3), 127, np.uint8)
     det(frame)
-    assert det.last_views == 1
-    if split_batch.onnxutil.available_cpus() > 1:
-        assert det._wide is not None
-        assert det._wide.get_session_options().intra_op_num_threads > 1
+    assert det.last_views == 1 and det._wide is not None
+    assert det._wide.get_session_options().intra_op_num_threads == 2

@@ -187,8 +187,10 @@ class ReID:
         if weights is not None:
             session, _ = self._pooled_session()
             feed[onnxutil.POOL_WEIGHTS] = weights
-        parts = split_batch.parts_for(len(batch_bgr)) if self.threads is None else 1
-        out = split_batch.run_split(session, feed, parts)[0]
+        if self.threads is None:
+            out = split_batch.run_split(session, feed)[0]
+        else:
+            out = session.run(None, feed)[0]
         self._raw_shape = np.shape(out)
         return np.asarray(out, np.float32).reshape(len(batch_bgr), -1)
 

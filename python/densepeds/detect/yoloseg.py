@@ -139,8 +139,9 @@ class YoloSegDetector:
         self.quantized = is_quantized_copy(self.path)
         self.threads = threads
         self.dequantize = dequantize and not self.quantized
-        # threads=None: views split one part per CPU, each on one thread (split_batch); a batch
-        # of fewer views than CPUs runs as one call on every CPU (_wide, made when first needed).
+        # threads=None: views split one part per CPU, each on one thread (split_batch), where
+        # they divide evenly; other batches run as one call on every CPU (_wide, made when
+        # first needed).
         self.session, self.rewritten = onnxutil.batched_session(
             self.path, 1 if threads is None else threads, dequantize=self.dequantize
         )
@@ -233,18 +234,18 @@ class YoloSegDetector:
         return preds, protos
 
     def _run_views(self, x: npt.NDArray[np.float32]) -> list[np.ndarray]:
-        """The model on a batch of views: split one part per CPU with ``threads`` None (one call
-        on every CPU for fewer views than CPUs), else one call on ``threads`` threads."""
+        """The model on a batch of views: with ``threads`` None split one part per CPU where
+        the views divide evenly, else one call on every CPU; with ``threads`` one call on that
+        many threads."""
         feed = {self.input_name: x}
         if self.threads is not None:
             return list(self.session.run(None, feed))
-        parts = split_batch.parts_for(len(x))
-        if parts < onnxutil.available_cpus():
+        if len(x) % onnxutil.available_cpus():
             return list(self._wide_session().run(None, feed))
-        return split_batch.run_split(self.session, feed, parts)
+        return split_batch.run_split(self.session, feed)
 
     def _wide_session(self) -> ort.InferenceSession:
-        """The model on every CPU in one call (``threads`` None, a batch too small to split)."""
+        """The model on every CPU in one call (``threads`` None: batches that do not split)."""
         if onnxutil.available_cpus() == 1:
             return self.session
         if self._wide is None:
