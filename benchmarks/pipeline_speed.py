@@ -20,8 +20,9 @@ decoding and masks. ``--reuse`` adds `densepeds run --reid-reuse` (re-ID reuse, 
 see densepeds.reid.ReusePolicy): in the fastest setting timed (``--skip K``'s) where there is one,
 else at the defaults. ``--int8 FILE`` adds `densepeds run --detector-model FILE`, the
 detector's int8 copy made by `densepeds models quantize` (densepeds.quantize), on the default
-tiles and on the grid; ``--skip K`` adds the int8 copy on the grid with a full scan every K-th
-frame only (`densepeds run --full-scan-every K`). ``--only NAME...`` times only those pipelines
+tiles and on the grid; ``--skip K`` adds a full scan every K-th frame only (`densepeds run
+--full-scan-every K`) to the float copy and to the int8 copy on the default tiles, and to the
+int8 copy on the grid. ``--only NAME...`` times only those pipelines
 beside the reference; ``--seq``/``--frames`` one video alone. ``--wait-quiet S`` starts each timed
 run once other processes leave the CPUs (waiting at most S seconds; on a shared machine).
 ``--memory`` appends `benchmarks/memory.py`'s table; ``--write`` writes the whole report as
@@ -186,6 +187,11 @@ def compare(
             cmds[skip_name(args.skip)] = [*run, *grid_int8, *skip]
             reuse = ["--full-scan-every", str(args.skip), "--reid-reuse"]
             cmds[reuse_name(args.skip)] = [*run, *grid_int8, *reuse, "--out", f"{tmp}/reuse.txt"]
+            on_people = ["--full-scan-every", str(args.skip), "--out", f"{tmp}/int8-people.txt"]
+            cmds[people_skip_name(args.skip, True)] = [*run, *int8[:2], *on_people]
+    if args.skip:
+        skip = ["--full-scan-every", str(args.skip), "--out", f"{tmp}/people-skip.txt"]
+        cmds[people_skip_name(args.skip, False)] = [*run, *skip]
     # `densepeds run` ends with "... N frames/s for the whole pipeline; timed: ... ms/frame)".
     markers = {name: "frames/s" for name in cmds} | {"reference": "reference:"}
     runs: dict[str, list[Run]] = {name: [] for name in names}
@@ -265,6 +271,11 @@ def skip_name(every: int) -> str:
     return f"ours+int8 on the grid, full scan every {every}"
 
 
+def people_skip_name(every: int, int8: bool) -> str:
+    """Ours on the default tiles (which follow the people) with a full scan every K-th frame."""
+    return f"ours{'+int8' if int8 else ''}, full scan every {every}"
+
+
 def reuse_name(every: int | None) -> str:
     return f"{skip_name(every)}, re-ID reuse" if every else "ours+reuse"
 
@@ -341,8 +352,9 @@ def main() -> int:
         "--skip",
         type=int,
         metavar="K",
-        help="with --int8: also time it on the grid with a full scan every K-th frame only "
-        "(between, the tiles showing somebody; YoloSegDetector full_scan_every)",
+        help="with --int8: also time ours (float and int8 on the default tiles, int8 on the "
+        "grid) with a full scan every K-th frame only (between, the tiles showing somebody; "
+        "YoloSegDetector full_scan_every)",
     )
     ap.add_argument(
         "--wait-quiet",
@@ -369,6 +381,7 @@ def main() -> int:
     if args.skip:
         if args.int8 is None or args.skip < 1:
             raise SystemExit("--skip K needs --int8 FILE and K >= 1")
+        names += [people_skip_name(args.skip, False), people_skip_name(args.skip, True)]
         names.append(skip_name(args.skip))
         names += [reuse_name(args.skip)] if args.reuse else []
     if args.only:
