@@ -17,6 +17,8 @@ from densepeds.cli import main
 from densepeds.detect.yoloseg import YoloSegDetector, choose_model
 from densepeds.errors import ModelError, ParameterError
 from densepeds.modelfiles import ENV_VAR, MODELS, quantized_file_name, sha256_of
+from densepeds.pipeline import suppress_duplicates
+from densepeds.presets import get_preset
 from densepeds.video import open_source, parse_frame_range
 
 YOLO = MODELS["yoloseg"]
@@ -105,10 +107,18 @@ def test_the_copy_finds_the_float_copys_people(made: tuple[Path, Path]) -> None:
     low = YoloSegDetector(model)  # finds the copy beside the model
     assert low.quantized and low.path.name == quantized_file_name(model)
     assert not ref.quantized
+    # The float copy's confident detections that the yoloseg preset hands the tracker: a part
+    # of a person it reports too (shorter than min_height, or a duplicate) is nobody to find,
+    # and whether the int8 copy reports it as well depends on the CPU's integer kernels.
+    opt = get_preset("yoloseg").detection
     for number in (50, 300, 701):  # none of them calibrated on
         frame = _frame(number)
         a, b = ref(frame), low(frame)
-        a_boxes = a.boxes[a.scores >= 0.3]
+        kept = a.subset(
+            suppress_duplicates(a, opt["nms_iou"], opt["nms_containment"], opt["nms_mask_overlap"])
+        )
+        tall = kept.boxes[:, 3] - kept.boxes[:, 1] >= opt["min_height"]
+        a_boxes = kept.boxes[(kept.scores >= 0.3) & tall]
         assert len(a_boxes) >= 3
         found = iou_matrix(a_boxes, b.boxes).max(axis=1) >= 0.5
         assert found.mean() >= 0.9, (number, found)
