@@ -280,14 +280,20 @@ def reuse_name(every: int | None) -> str:
     return f"{skip_name(every)}, re-ID reuse" if every else "ours+reuse"
 
 
+# Vector instruction sets onnxruntime's kernels choose between (int8 most of all: VNNI).
+ISA_FLAGS = ("avx2", "avx512f", "avx512_vnni", "avx_vnni", "amx_int8")
+
+
 def _cpu_name() -> str:
+    """The CPU's model name and which of ``ISA_FLAGS`` it exposes (the ratios depend on them)."""
     try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
+        info = Path("/proc/cpuinfo").read_text().splitlines()
     except OSError:
-        pass
-    return platform.processor() or platform.machine()
+        return platform.processor() or platform.machine()
+    name = next((ln.split(":", 1)[1].strip() for ln in info if ln.startswith("model name")), "")
+    flags = next((ln.split(":", 1)[1].split() for ln in info if ln.startswith("flags")), [])
+    shown = [f for f in ISA_FLAGS if f in flags]
+    return f"{name or platform.machine()} ({' '.join(shown) or 'none of ' + ', '.join(ISA_FLAGS)})"
 
 
 def _runnable_others(seconds: float = 2.0, samples: int = 10) -> float:
