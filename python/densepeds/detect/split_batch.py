@@ -3,7 +3,7 @@
 With idle threads sleeping (``onnxutil.session_options``), a session that spreads each layer of
 a small network over several threads pays a wake-up per layer. Splitting the batch instead, one
 part per CPU, each run start to end by one thread, keeps every CPU busy without those
-hand-overs: on 2 CPUs OSNet embeds 8 crops in about 0.6x the time of one call on two threads.
+hand-overs: on 2 CPUs OSNet embeds 8 crops in about 0.65x the time of one call on two threads.
 Items left over when the batch does not divide evenly (fewer than the CPUs) run after, in one
 call. The detector, whose layers are large enough to share, splits only a batch of views that
 divides evenly and runs any other as one call on every CPU (``benchmarks/results/speed.md`` has
@@ -12,7 +12,8 @@ several threads at once.
 
 Each item's output does not depend on the other items in its batch for the models this package
 runs (convolutions, pooling and the like work image by image), so the split gives bitwise the
-outputs of one call (``tests/test_split_batch.py`` checks both shipped models).
+outputs of one call (``tests/test_split_batch.py`` checks the segmenter, as shipped and as its
+float copy, ``tests/test_reid_threads.py`` OSNet).
 """
 
 from __future__ import annotations
