@@ -188,6 +188,30 @@ def test_failed_check_writes_nothing(tmp_path: Path, capsys: pytest.CaptureFixtu
     assert list(tmp_path.iterdir()) == []
 
 
+def test_integer_dot_product_is_read_from_the_cpu_flags() -> None:
+    assert quantize.integer_dot_product("flags\t: fpu sse avx2 avx512f avx512_vnni\n") is True
+    assert quantize.integer_dot_product("flags\t: fpu sse avx2 fma\nflags : avx\n") is False
+    assert quantize.integer_dot_product("Features\t: fp asimd asimddp\n") is True
+    assert quantize.integer_dot_product("processor : 0\n") is None
+
+
+@pytest.mark.parametrize("dot_product", [False, True, None])
+def test_quantize_says_when_the_cpu_lacks_integer_dot_products(
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    dot_product: bool | None,
+) -> None:
+    monkeypatch.setattr(quantize, "integer_dot_product", lambda: dot_product)
+    video = shared_path("data", "PETS09-S2L1-dev", "vtest.avi")
+    rc = main(
+        ["models", "quantize", "--calibrate", f"{video}{CALIBRATION}", "--dir", str(tmp_path)]
+    )
+    out = capsys.readouterr().out
+    assert rc == 0
+    assert ("no integer dot-product instructions" in out) is (dot_product is False)
+
+
 def test_bad_calibration_is_one_line(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     for spec in (f"{tmp_path}/missing.mp4", f"{tmp_path}@1:2/0"):
         rc = main(["models", "quantize", "--calibrate", spec, "--dir", str(tmp_path)])

@@ -830,6 +830,13 @@ def _cmd_quantize(args: argparse.Namespace) -> int:
             f"({agree.recall:.3f}; it has {agree.int8_dets}) on {agree.frames} frames it was not "
             "calibrated on"
         )
+        if quantize.integer_dot_product() is False:
+            print(
+                "this CPU has no integer dot-product instructions (AVX-512 VNNI, AVX-VNNI, ARM "
+                "dot product): onnxruntime runs the int8 copy on slower kernels here, and its "
+                "detections differ more from the float copy's; time and score `densepeds run` "
+                "with it (--detector-model) and without before relying on it"
+            )
         if agree.recall < args.min_agreement:
             raise ModelError(
                 f"the int8 copy agrees with the float copy on {agree.recall:.3f} of its "

@@ -47,6 +47,9 @@ PERCENTILE = 99.999  # of |activation|, for ``calibration="percentile"``
 
 if TYPE_CHECKING:
     import onnx
+# CPU flags (Linux /proc/cpuinfo) of the integer dot-product instructions that onnxruntime's
+# U8S8 kernels are made for: x86 AVX-512 VNNI and AVX-VNNI, ARM's dot product.
+DOT_PRODUCT_FLAGS = ("avx512_vnni", "avx_vnni", "asimddp")
 META_SOURCE = "densepeds.quantized_from_sha256"
 META_CALIBRATION = "densepeds.calibration"
 META_FORMAT = "densepeds.quant_format"
@@ -58,6 +61,24 @@ def metadata(path: Path) -> dict[str, str]:
     from densepeds.detect import onnxutil
 
     return onnxutil.model_metadata(path)
+
+
+def integer_dot_product(cpuinfo: str | None = None) -> bool | None:
+    """Whether the CPU has one of :data:`DOT_PRODUCT_FLAGS` (``cpuinfo``: the text of
+    /proc/cpuinfo, read when not given); None where that cannot be told."""
+    if cpuinfo is None:
+        try:
+            cpuinfo = Path("/proc/cpuinfo").read_text()
+        except OSError:
+            return None
+    flags: set[str] = set()
+    for line in cpuinfo.splitlines():
+        key, _, value = line.partition(":")
+        if key.strip() in ("flags", "Features"):
+            flags.update(value.split())
+    if not flags:
+        return None
+    return any(f in flags for f in DOT_PRODUCT_FLAGS)
 
 
 def is_quantized_copy(path: Path) -> bool:
