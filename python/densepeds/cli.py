@@ -145,6 +145,14 @@ def build_parser() -> argparse.ArgumentParser:
         "the views that show somebody found in the last K frames (fewer views, faster; the tracks "
         "change); default 1: all views every frame",
     )
+    run.add_argument(
+        "--focus-lost",
+        metavar="S",
+        type=float,
+        help="the yoloseg detector also looks closer at each person the tracker reports without "
+        "a detection (lost behind others): one more view a frame each, a square S times their "
+        "height (e.g. 2.5; more people found in dense crowds, slower); default: off",
+    )
     run.add_argument("--reid-model", metavar="PATH", help=REID_MODEL_HELP)
     run.add_argument(
         "--reid-reuse",
@@ -657,9 +665,19 @@ def open_run(args: argparse.Namespace, models: Any = None) -> tuple[Any, Any, An
             "--full-scan-every sets the yoloseg detector's views, and this run does not detect "
             "with it (add --detector yoloseg to detect)"
         )
+    focus_lost = getattr(args, "focus_lost", None)
+    if focus_lost is not None and (detector != "yoloseg" or args.detections is not None):
+        raise ParameterError(
+            "--focus-lost adds views to the yoloseg detector, and this run does not detect "
+            "with it (add --detector yoloseg to detect)"
+        )
     detector_options = {
         key: value
-        for key, value in (("tiles", tiles), ("full_scan_every", full_scan_every))
+        for key, value in (
+            ("tiles", tiles),
+            ("full_scan_every", full_scan_every),
+            ("focus_scale", focus_lost),
+        )
         if value is not None
     }
     reid_reuse = getattr(args, "reid_reuse", False)

@@ -343,6 +343,9 @@ class Pipeline:
             index = tracks.det_index.copy()
             index[matched] = kept[index[matched]]
             tracks = tracks._replace(det_index=index)
+        if self._detector is not None and hasattr(self._detector, "focus"):
+            # The people reported without a detection, for a closer look (focus_scale).
+            self._detector.focus(tracks.boxes[tracks.det_index < 0])
         return tracks
 
     def set_image_size(self, width: int, height: int) -> None:

@@ -37,6 +37,7 @@ from densepeds.quantize import META_SOURCE, is_quantized_copy, metadata
 from densepeds.types import Detections
 
 LETTERBOX_GREY = 114
+MIN_FOCUS_SIDE = 8  # pixels: a focus view cut smaller than this by the frame's edge is skipped
 EXPECTED = (
     "a YOLOv8/YOLO11-seg ONNX model: one image input [1,3,H,W] or [1,H,W,3] (RGB in [0,1]) and "
     "outputs [1,4+classes+masks,anchors] and prototypes [1,masks,h,w] or [1,h,w,masks] "
@@ -103,6 +104,13 @@ class YoloSegDetector:
     benchmarks/results/detector-recall.md). A fixed grid skips the same way
     (``tiling.SkipSchedule``): all its tiles every k-th frame, between only the occupied ones.
     ``benchmarks/detector_recall.py`` measures recall and views per choice.
+
+    ``focus_scale`` (default 0: off) adds, on the next frame, one view per box given to
+    :meth:`focus` (``Pipeline`` gives the tracks it reports without a detection: people lost
+    behind others), a square centred on the box with side ``focus_scale`` times its height, so
+    that the people there are seen magnified; their detections merge with the tiles' in the
+    same cross-view suppression, and the tile choice learns only from the detections kept from
+    the tiles' views.
     """
 
     def __init__(
@@ -123,12 +131,17 @@ class YoloSegDetector:
         max_tiles: int = 12,
         max_scale: float = 3.0,
         full_scan_every: int = 1,
+        focus_scale: float = 0.0,
     ) -> None:
+        if not 0.0 <= focus_scale < float("inf"):
+            raise ParameterError(f"focus_scale must be >= 0 and finite, got {focus_scale}")
         if not 0.0 <= score_threshold <= 1.0:
             raise ParameterError(f"score_threshold must be in [0, 1], got {score_threshold}")
         if not 0.0 < iou_threshold <= 1.0:
             raise ParameterError(f"iou_threshold must be in (0, 1], got {iou_threshold}")
         self.tiles = tiles
+        self.focus_scale = focus_scale
+        self._focus = np.zeros((0, 4))  # boxes to look at magnified on the next frame
         self.score_threshold = score_threshold
         self.iou_threshold = iou_threshold
         self.full_frame = full_frame
@@ -285,22 +298,49 @@ class YoloSegDetector:
         """Forget the people seen (another video starts): its first frames get the fixed grid."""
         self.people_tiles.reset()
         self.grid_schedule.reset()
+        self._focus = np.zeros((0, 4))
+
+    def focus(self, boxes: npt.ArrayLike) -> None:
+        """Boxes ``[x1, y1, x2, y2]`` to look at closer on the next frame (with ``focus_scale``
+        > 0; ignored otherwise): one more view per box, a square centred on it with side
+        ``focus_scale`` times its height. ``Pipeline`` gives the boxes of the tracks it reports
+        without a detection (people lost behind others)."""
+        self._focus = np.asarray(boxes, np.float64).reshape(-1, 4)
+
+    def focus_views(self, width: int, height: int) -> list[_View]:
+        """The views of the boxes given to :meth:`focus` (none with ``focus_scale`` 0)."""
+        out = []
+        for b in self._focus if self.focus_scale > 0 else []:
+            cx, cy, side = (b[0] + b[2]) / 2, (b[1] + b[3]) / 2, self.focus_scale * (b[3] - b[1])
+            x0, y0 = int(max(0, cx - side / 2)), int(max(0, cy - side / 2))
+            x1, y1 = int(min(width, cx + side / 2)), int(min(height, cy + side / 2))
+            if x1 - x0 < MIN_FOCUS_SIDE or y1 - y0 < MIN_FOCUS_SIDE:
+                continue
+            tile = Tile(x0, y0, x1, y1, (x0 > 0, y0 > 0, x1 < width, y1 < height))
+            scale = min(self.input_w / (x1 - x0), self.input_h / (y1 - y0))
+            out.append(_View(tile, scale, True))
+        return out
 
     def __call__(self, frame: npt.NDArray[np.uint8]) -> Detections:
         check_frame(frame)
         height, width = frame.shape[:2]
         clock = time.perf_counter()
         views = self.views(width, height)
+        tiles = len(views)
+        views += self.focus_views(width, height)
+        self._focus = np.zeros((0, 4))
         self.last_views = len(views)
         batch = self.letterbox(frame, views)
         clock = self._tick("preprocess", clock)
         preds, protos = self._infer(batch)
         clock = self._tick("inference", clock)
         found = self.candidates(preds, views, width, height)
+        # The tile choice learns from the detections kept from the tiles, not the focus views.
+        seen = found.view_idx < tiles
         if self.tiles == "auto":
-            self.people_tiles.observe(found.boxes, found.scores, width, height)
+            self.people_tiles.observe(found.boxes[seen], found.scores[seen], width, height)
         else:
-            self.grid_schedule.observe(found.boxes)
+            self.grid_schedule.observe(found.boxes[seen])
         dets = Detections(found.boxes.astype(np.float32), found.scores)
         clock = self._tick("boxes", clock)
         if self.with_masks and len(found.boxes):

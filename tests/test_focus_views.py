@@ -1,0 +1,120 @@
+"""The detector's closer look at people the tracker reports without a detection (focus_scale,
+``densepeds run --focus-lost``)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+from conftest import shared_path
+from densepeds.cli import main
+from densepeds.detect.yoloseg import YoloSegDetector
+from densepeds.errors import ParameterError
+from densepeds.pipeline import Pipeline
+from densepeds.types import Detections
+from test_detect import video_frames
+
+YOLO = "yolov8n-seg-320-int8.onnx"
+
+
+def _frames(*numbers: int) -> list[np.ndarray]:
+    video = shared_path("data", "MOT20-01-dev", "MOT20-01-raw.mp4")
+    found = video_frames(video, list(numbers))
+    return [found[k] for k in numbers]
+
+
+@pytest.mark.parametrize("scale", [-1.0, float("inf"), float("nan")])
+def test_a_bad_focus_scale_is_refused(scale: float) -> None:
+    with pytest.raises(ParameterError, match="focus_scale"):
+        YoloSegDetector(shared_path("models", YOLO), focus_scale=scale)
+
+
+def test_each_focus_box_adds_one_view_to_the_next_frame_only() -> None:
+    (frame,) = _frames(1)
+    det = YoloSegDetector(shared_path("models", YOLO), tiles=(3, 2), focus_scale=2.5)
+    det(frame)
+    assert det.last_views == 6
+    box = [400.0, 200.0, 430.0, 280.0]
+    det.focus([box, [0.0, 0.0, 2.0, 3.0]])  # the second is cut below MIN_FOCUS_SIDE: skipped
+    (view,) = det.focus_views(960, 540)
+    side = 2.5 * 80
+    assert (view.tile.x0, view.tile.y0, view.tile.x1, view.tile.y1) == (315, 140, 515, 340)
+    assert view.tile.x1 - view.tile.x0 == side
+    found = det(frame)
+    assert det.last_views == 7 and len(found) > 10
+    det(frame)
+    assert det.last_views == 6  # used once
+    off = YoloSegDetector(shared_path("models", YOLO), tiles=(3, 2))
+    off.focus([box])
+    off(frame)
+    assert off.last_views == 6  # focus_scale 0: no closer look
+
+
+def test_the_tile_choice_learns_only_from_the_detections_kept_from_the_tiles(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    frames = _frames(1, 2, 3)
+    det = YoloSegDetector(shared_path("models", YOLO), focus_scale=2.5)
+    kept_from: list[np.ndarray] = []  # per frame: the view of each kept detection
+    observed: list[int] = []
+    candidates, observe = det.candidates, det.people_tiles.observe
+
+    def spy_candidates(*args: Any) -> Any:
+        found = candidates(*args)
+        kept_from.append(found.view_idx.copy())
+        return found
+
+    def spy_observe(boxes: Any, *args: Any) -> None:
+        observed.append(len(boxes))
+        observe(boxes, *args)
+
+    monkeypatch.setattr(det, "candidates", spy_candidates)
+    monkeypatch.setattr(det.people_tiles, "observe", spy_observe)
+    from_focus = 0
+    for k, frame in enumerate(frames):
+        tiles = len(det.views(960, 540))
+        found = det(frame)
+        det.focus(found.boxes[:5])
+        assert det.last_views == tiles + (5 if k else 0)
+        assert observed[-1] == int((kept_from[-1] < tiles).sum())
+        from_focus += int((kept_from[-1] >= tiles).sum())
+    assert from_focus > 0  # the focus views' detections are kept, and not observed
+
+
+class _Detector:
+    """One person at a fixed box for ``seen`` frames, then nobody; remembers its focus boxes."""
+
+    def __init__(self, seen: int) -> None:
+        self.seen = seen
+        self.calls = 0
+        self.focused: list[np.ndarray] = []
+
+    def __call__(self, frame: np.ndarray) -> Detections:
+        self.calls += 1
+        if self.calls > self.seen:
+            return Detections.empty()
+        return Detections(np.array([[100, 100, 140, 200]], np.float32), np.array([0.9]))
+
+    def focus(self, boxes: Any) -> None:
+        self.focused.append(np.asarray(boxes))
+
+
+def test_the_pipeline_focuses_the_detector_on_the_tracks_reported_without_a_detection() -> None:
+    det = _Detector(seen=10)
+    pipe = Pipeline(det, features="none", output_lost_adaptive=False)
+    frame = np.zeros((300, 400, 3), np.uint8)
+    lost_shown = 0
+    for k in range(14):
+        tracks = pipe.step(frame)
+        expected = tracks.boxes[tracks.det_index < 0]
+        assert np.array_equal(det.focused[k], expected)
+        lost_shown += len(expected)
+    assert lost_shown > 0  # the person lost after frame 10 was reported, and looked for
+
+
+def test_focus_lost_without_the_detector_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:
+    seq = shared_path("data", "TUD-Stadtmitte")
+    rc = main(["run", str(seq), "--focus-lost", "2.5", "--frames", "1:2"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "--focus-lost" in err and len(err.strip().splitlines()) == 1
