@@ -277,10 +277,12 @@ class YoloSegDetector:
         regions = [(t, True) for t in tiles]
         if not tiles or self.full_frame:
             regions.append((whole, False))
-        return [
-            _View(t, min(self.input_w / (t.x1 - t.x0), self.input_h / (t.y1 - t.y0)), is_tile)
-            for t, is_tile in regions
-        ]
+        return [self._view(t, is_tile) for t, is_tile in regions]
+
+    def _view(self, tile: Tile, is_tile: bool) -> _View:
+        """``tile`` letterboxed into the model input at the largest scale that fits."""
+        scale = min(self.input_w / (tile.x1 - tile.x0), self.input_h / (tile.y1 - tile.y0))
+        return _View(tile, scale, is_tile)
 
     def letterbox(self, frame: npt.NDArray[np.uint8], views: list[_View]) -> np.ndarray:
         """The views of ``frame`` resized into one uint8 batch [V, H, W, 3], grey padded."""
@@ -301,10 +303,8 @@ class YoloSegDetector:
         self._focus = np.zeros((0, 4))
 
     def focus(self, boxes: npt.ArrayLike) -> None:
-        """Boxes ``[x1, y1, x2, y2]`` to look at closer on the next frame (with ``focus_scale``
-        > 0; ignored otherwise): one more view per box, a square centred on it with side
-        ``focus_scale`` times its height. ``Pipeline`` gives the boxes of the tracks it reports
-        without a detection (people lost behind others)."""
+        """Boxes ``[x1, y1, x2, y2]`` to look at closer on the next frame (see ``focus_scale``
+        in the class docstring)."""
         self._focus = np.asarray(boxes, np.float64).reshape(-1, 4)
 
     def focus_views(self, width: int, height: int) -> list[_View]:
@@ -317,8 +317,7 @@ class YoloSegDetector:
             if x1 - x0 < MIN_FOCUS_SIDE or y1 - y0 < MIN_FOCUS_SIDE:
                 continue
             tile = Tile(x0, y0, x1, y1, (x0 > 0, y0 > 0, x1 < width, y1 < height))
-            scale = min(self.input_w / (x1 - x0), self.input_h / (y1 - y0))
-            out.append(_View(tile, scale, True))
+            out.append(self._view(tile, True))
         return out
 
     def __call__(self, frame: npt.NDArray[np.uint8]) -> Detections:
