@@ -174,7 +174,10 @@ def _header(title: str, what: str) -> list[str]:
         "PETS09-S2L1-dev frames 1-397 with the shared segmenter's float copy (`/float`) and "
         "its int8 graph as shipped (`/int8`, `dequantize=False`), OSNet x0.25 embeddings of "
         "every detection, cached. Every cell is tracked through `densepeds.Pipeline.step` and "
-        "scored by `densepeds.evaluate` (trackeval, MOTChallenge rules).",
+        "scored by `densepeds.evaluate` (trackeval, MOTChallenge rules). The cached detections "
+        "are the detector's alone: the package's closer look at the people the tracker lost "
+        "(`YoloSegDetector(focus_scale)`, on by default) needs a live run, and is measured on "
+        "the four video cells in `results/focus.md`.",
         "",
         "Package defaults: on det files the tracker's own defaults, chosen on "
         f"{TUNED_ON['det']} (leave-one-out check in `results/accuracy-loo.md`): `{own}`. "

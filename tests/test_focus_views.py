@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from conftest import shared_path
 from densepeds.cli import main
+from densepeds.detect import onnxutil
 from densepeds.detect.yoloseg import YoloSegDetector
 from densepeds.errors import ParameterError
 from densepeds.pipeline import Pipeline
@@ -45,7 +46,7 @@ def test_each_focus_box_adds_one_view_to_the_next_frame_only() -> None:
     assert det.last_views == 7 and len(found) > 10
     det(frame)
     assert det.last_views == 6  # used once
-    off = YoloSegDetector(shared_path("models", YOLO), tiles=(3, 2))
+    off = YoloSegDetector(shared_path("models", YOLO), tiles=(3, 2), focus_scale=0)
     off.focus([box])
     off(frame)
     assert off.last_views == 6  # focus_scale 0: no closer look
@@ -118,3 +119,33 @@ def test_focus_lost_without_the_detector_is_one_line(capsys: pytest.CaptureFixtu
     rc = main(["run", str(seq), "--focus-lost", "2.5", "--frames", "1:2"])
     err = capsys.readouterr().err
     assert rc == 2 and "--focus-lost" in err and len(err.strip().splitlines()) == 1
+
+
+def test_many_views_run_a_few_at_a_time_with_the_same_detections(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Focus views grow with the people lost: the detector runs VIEWS_PER_THREAD views per
+    thread in a call (bounded memory), and finds exactly what one call on them all finds."""
+    import densepeds.detect.yoloseg as yoloseg
+
+    (frame,) = _frames(100)
+    boxes = [[x, 250.0, x + 20.0, 300.0] for x in range(60, 900, 60)]  # 14 people, 960 x 540
+    found = {}
+    for per_thread in (yoloseg.VIEWS_PER_THREAD, 100):
+        monkeypatch.setattr(yoloseg, "VIEWS_PER_THREAD", per_thread)
+        det = YoloSegDetector(shared_path("models", YOLO), tiles=(3, 2), focus_scale=2.5)
+        calls: list[int] = []
+        infer = det._infer
+        monkeypatch.setattr(
+            det, "_infer", lambda x, infer=infer, calls=calls: calls.append(len(x)) or infer(x)
+        )
+        det.focus(boxes)
+        found[per_thread] = det(frame)
+        assert det.last_views == 6 + len(boxes)
+        assert calls[0] == 20  # the spy sees the whole batch first; its parts recurse inside
+        most = per_thread * onnxutil.available_cpus()
+        assert max(calls[1:], default=0) <= most and (len(calls) > 1) == (most < 20)
+    small, whole = found[yoloseg.VIEWS_PER_THREAD], found[100]
+    assert len(small) > 20
+    assert np.array_equal(small.boxes, whole.boxes) and np.array_equal(small.scores, whole.scores)
+    assert all(np.array_equal(a, b) for a, b in zip(small.masks, whole.masks, strict=True))

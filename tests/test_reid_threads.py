@@ -82,3 +82,29 @@ def test_masked_pool_embeddings_bitwise_the_same_split_or_in_one_call() -> None:
     default = ReID(model).embed_crops(crops, masks)
     two = ReID(model, threads=2).embed_crops(crops, masks)
     assert np.isfinite(default).all() and np.array_equal(default, two)
+
+
+@pytest.mark.parametrize("pooled", [False, True])
+def test_a_crowd_is_embedded_a_few_crops_per_thread_at_a_time_with_the_same_embeddings(
+    monkeypatch: pytest.MonkeyPatch, pooled: bool
+) -> None:
+    """CROPS_PER_THREAD bounds each call (memory stays bounded in a crowd); the embeddings are
+    those of one call on every crop."""
+    model = shared_path("models", "osnet_x0_25_msmt17.onnx")
+    crops = _crops(37, 5)
+    rng = np.random.default_rng(4)
+    masks = [rng.random(c.shape[:2]) > 0.4 for c in crops] if pooled else None
+    monkeypatch.setattr(reid_module, "CROPS_PER_THREAD", 1000)
+    whole = ReID(model, threads=2).embed_crops(crops, masks)
+    monkeypatch.setattr(reid_module, "CROPS_PER_THREAD", 3)
+    small = ReID(model, threads=2)
+    session = small._pooled_session()[0] if pooled else small.session
+    recording = _Recording(session)
+    if pooled:
+        small._pooled = (recording, small._pooled[1])  # type: ignore[assignment, index]
+    else:
+        small.session = recording  # type: ignore[assignment]
+    got = small.embed_crops(crops, masks)
+    sizes = [n for n, _ in recording.calls]
+    assert sum(sizes) == 37 and max(sizes) == 6  # 3 crops on each of 2 threads at most
+    assert np.array_equal(got, whole)

@@ -151,7 +151,8 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         help="the yoloseg detector also looks closer at each person the tracker reports without "
         "a detection (lost behind others): one more view a frame each, a square S times their "
-        "height (e.g. 2.5; more people found in dense crowds, slower); default: off",
+        "height (more people found in dense crowds, slower there); 0 turns it off; default: "
+        "the detector's own (YoloSegDetector's focus_scale)",
     )
     run.add_argument("--reid-model", metavar="PATH", help=REID_MODEL_HELP)
     run.add_argument(

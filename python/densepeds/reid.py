@@ -26,6 +26,9 @@ from densepeds.types import Detections
 
 DEFAULT_MODEL = "osnet_x0_25_msmt17.onnx"
 POOL_FLOOR = 0.1  # weight of a background cell in mask-weighted pooling (person cells: 1)
+# Crops a thread embeds in one onnxruntime call: memory stays bounded however many people a frame
+# has; the embeddings do not change.
+CROPS_PER_THREAD = 16
 
 
 @dataclass(frozen=True)
@@ -182,6 +185,16 @@ class ReID:
     def _run(
         self, batch_bgr: npt.NDArray[np.uint8], weights: npt.NDArray[np.float32] | None = None
     ) -> npt.NDArray[np.float32]:
+        """Embeddings of the crops, at most ``CROPS_PER_THREAD`` per thread at a time."""
+        most = CROPS_PER_THREAD * (self.threads or onnxutil.available_cpus())
+        if len(batch_bgr) > most:
+            parts = [
+                self._run(
+                    batch_bgr[i : i + most], None if weights is None else weights[i : i + most]
+                )
+                for i in range(0, len(batch_bgr), most)
+            ]
+            return np.concatenate(parts)
         feed: dict[str, np.ndarray] = {self.input_name: self._input(batch_bgr)}
         session = self.session
         if weights is not None:

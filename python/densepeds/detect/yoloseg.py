@@ -38,6 +38,10 @@ from densepeds.types import Detections
 
 LETTERBOX_GREY = 114
 MIN_FOCUS_SIDE = 8  # pixels: a focus view cut smaller than this by the frame's edge is skipped
+# Views a thread prepares and runs in one onnxruntime call: the input's and the activations'
+# memory stays bounded however many views a frame has (focus views grow with the people lost);
+# the outputs do not change.
+VIEWS_PER_THREAD = 4
 EXPECTED = (
     "a YOLOv8/YOLO11-seg ONNX model: one image input [1,3,H,W] or [1,H,W,3] (RGB in [0,1]) and "
     "outputs [1,4+classes+masks,anchors] and prototypes [1,masks,h,w] or [1,h,w,masks] "
@@ -105,12 +109,14 @@ class YoloSegDetector:
     (``tiling.SkipSchedule``): all its tiles every k-th frame, between only the occupied ones.
     ``benchmarks/detector_recall.py`` measures recall and views per choice.
 
-    ``focus_scale`` (default 0: off) adds, on the next frame, one view per box given to
+    ``focus_scale`` (default 2.5; 0: off) adds, on the next frame, one view per box given to
     :meth:`focus` (``Pipeline`` gives the tracks it reports without a detection: people lost
     behind others), a square centred on the box with side ``focus_scale`` times its height, so
     that the people there are seen magnified; their detections merge with the tiles' in the
     same cross-view suppression, and the tile choice learns only from the detections kept from
-    the tiles' views.
+    the tiles' views. Nothing changes until :meth:`focus` is called. The default was chosen
+    leave-one-out on the four video cells (benchmarks/results/focus.md, which also has its
+    cost in views).
     """
 
     def __init__(
@@ -131,7 +137,7 @@ class YoloSegDetector:
         max_tiles: int = 12,
         max_scale: float = 3.0,
         full_scan_every: int = 1,
-        focus_scale: float = 0.0,
+        focus_scale: float = 2.5,
     ) -> None:
         if not 0.0 <= focus_scale < float("inf"):
             raise ParameterError(f"focus_scale must be >= 0 and finite, got {focus_scale}")
@@ -235,7 +241,12 @@ class YoloSegDetector:
         return np.ascontiguousarray(x)
 
     def _infer(self, batch_u8: npt.NDArray[np.uint8]) -> tuple[np.ndarray, np.ndarray]:
-        """batch_u8: BGR uint8 [B, H, W, 3] letterboxed views -> (predictions, prototypes)."""
+        """batch_u8: BGR uint8 [B, H, W, 3] letterboxed views -> (predictions, prototypes), at
+        most ``VIEWS_PER_THREAD`` views per thread at a time (model input and activations)."""
+        most = VIEWS_PER_THREAD * (self.threads or onnxutil.available_cpus())
+        if len(batch_u8) > most:
+            parts = [self._infer(batch_u8[i : i + most]) for i in range(0, len(batch_u8), most)]
+            return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
         x = self.prepare(batch_u8)
         if self.batch_views:
             out = self._run_views(x)
