@@ -8,11 +8,12 @@ For each sequence, each repeat runs both as separate processes (niced, ``--nice`
 loading included (after one untimed 1-frame run of each, which fills onnxruntime's cache of
 optimised graphs and Python's bytecode cache as a user's first start does), alternating which
 goes first: ours (`python -m densepeds run SEQ --detector yoloseg --frames A:B`, the package
-defaults) and `benchmarks/reference_pipeline.py` (the straightforward pipeline, on the tiles ours
-picks for the frame size). onnxruntime gets ``--threads`` intra-op threads in both (by CPU
-affinity for ours: the command is started under ``taskset`` with that many CPUs when the machine
-has more; else it is the machine's count; ours splits the detector's views and the re-ID
-crops one part per CPU, each part on one thread: ``densepeds.detect.split_batch``).
+defaults; beside it, and in every other setting timed, `--focus-lost 0`: no closer look at the
+people the tracker lost) and `benchmarks/reference_pipeline.py` (the straightforward pipeline,
+on the tiles ours picks for the frame size). onnxruntime gets ``--threads`` intra-op threads in
+both (by CPU affinity for ours: the command is started under ``taskset`` with that many CPUs
+when the machine has more; else it is the machine's count; ours splits the detector's views and
+the re-ID crops one part per CPU, each part on one thread: ``densepeds.detect.split_batch``).
 Prints each run's wall and CPU seconds, per-stage ms/frame and the load average, then the
 medians, re-ID's share of our frame and the ratio reference / ours. ``--profile`` adds an
 in-process pass of our pipeline that splits detection into preprocessing, inference, box
@@ -50,6 +51,7 @@ SHARED = Path(os.environ.get("DENSEPEDS_SHARED", REPO.parent / "shared"))
 os.environ.setdefault("DENSEPEDS_MODEL_DIR", str(SHARED / "models"))
 STAGE_RE = re.compile(r"([a-z]+) ([0-9.]+)")
 DETECTOR_INPUT = 320  # the shared segmenter's input size, which sets the automatic tiles
+NO_FOCUS = "ours, no focus views"
 
 
 def _cpu_prefix(threads: int) -> list[str]:
@@ -163,8 +165,11 @@ def compare(
     run = [*nice, *pin, sys.executable, "-m", "densepeds", "run", str(seq_dir)]
     run += ["--detector", "yoloseg", "--frames", frames, "-q"]
     ours = [*run, "--out", f"{tmp}/ours.txt"]
+    # Every other setting runs without the focus views, as fast.md measures its accuracy.
+    run += ["--focus-lost", "0"]
     cmds = {
         "ours": ours,
+        NO_FOCUS: [*run, "--out", f"{tmp}/no-focus.txt"],
         "reference": [
             *nice,
             *pin,
@@ -381,7 +386,7 @@ def main() -> int:
     seqs, ranges = args.seq.split(","), args.frames.split(",")
     if len(ranges) != len(seqs):
         raise SystemExit(f"give one frame range per sequence: {len(seqs)} vs {len(ranges)}")
-    names = ["reference", "ours", "ours on the grid"]
+    names = ["reference", "ours", NO_FOCUS, "ours on the grid"]
     names += ["ours+reuse"] if args.reuse and not args.skip else []
     names += ["ours+int8", "ours+int8 on the grid"] if args.int8 is not None else []
     if args.skip:
@@ -406,8 +411,11 @@ def main() -> int:
         "(model loading included), the order alternating; the load average is printed "
         "around each run. `reference` is `benchmarks/reference_pipeline.py` (the shipped int8 "
         "segmenter, a batch-1 call per tile, OSNet on every crop); `ours` is `densepeds run` "
-        "with the package's defaults; `ours on the grid` is the same on the reference's fixed "
-        "grid of tiles (`densepeds.detect.tiling.auto_grid`).",
+        "with the package's defaults; `ours, no focus views` the same with `--focus-lost 0` (no "
+        "closer look at the people the tracker lost: `benchmarks/results/focus.md`), as every "
+        "other row runs (`results/fast.md` measures their accuracy without it); `ours on the "
+        "grid` is that on the reference's fixed grid of tiles "
+        "(`densepeds.detect.tiling.auto_grid`).",
         "",
     ]
     with tempfile.TemporaryDirectory(prefix="densepeds-speed-") as tmp:
