@@ -239,16 +239,14 @@ def track_cell(data: CellData, config: Config) -> Rows:
         emb = None if kind == "none" else data.embeddings[kind][k]
         tracks = pipe.step(None, dets, embeddings=emb)
         if len(tracks.ids):
-            out.append(
-                np.c_[
-                    np.full(len(tracks.ids), k + 1),
-                    tracks.ids,
-                    tracks.boxes,
-                    tracks.scores,
-                    tracks.det_index >= 0,
-                ]
-            )
+            out.append(frame_rows(k + 1, tracks))
     return np.concatenate(out) if out else np.zeros((0, 8))
+
+
+def frame_rows(frame: int, tracks: Any) -> Rows:
+    """One frame's tracks (densepeds.Tracks) as ``Rows``."""
+    matched = tracks.det_index >= 0
+    return np.c_[np.full(len(tracks.ids), frame), tracks.ids, tracks.boxes, tracks.scores, matched]
 
 
 def score_cell(data: CellData, rows: Rows, tmp: Path) -> dict[str, float]:

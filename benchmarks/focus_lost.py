@@ -112,9 +112,7 @@ def run_cell(cell: grid.Cell, scale: float, cache: Path, frames: str | None = No
         raw = pipe._frame_detections
         detected.append(raw.boxes.astype(np.float64))
         fed.append(raw.boxes[pipe._kept(raw)].astype(np.float64))
-        matched = tracks.det_index >= 0
-        n = len(tracks.ids)
-        rows.append(np.c_[np.full(n, k + 1), tracks.ids, tracks.boxes, tracks.scores, matched])
+        rows.append(grid.frame_rows(k + 1, tracks))
     seconds = time.perf_counter() - t0
     run = Run(np.concatenate(rows) if rows else np.zeros((0, 8)), detected, fed, views, seconds)
     cache.mkdir(parents=True, exist_ok=True)
