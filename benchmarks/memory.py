@@ -2,23 +2,29 @@
 the peak after 100).
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/memory.py [--input VIDEO] [--frames 1:400] \
-        [--at 100,200,300,400] [--write benchmarks/results/memory.md]
+        [--at 100,200,300,400] [--repeats 3] [--write benchmarks/results/memory.md]
 
 Runs the package's pipeline with its defaults, as `densepeds run` does (detector, re-ID,
 tracker, every frame's tracks kept as output rows), over a video (default: the whole
 MOT20-01 video, 429 frames; the dev sequence stops at 214), and prints the
 process's peak and current resident memory after the given numbers of frames, with the
-growth of the last checkpoint over the first. Figures only: nothing is asserted.
+growth of the last checkpoint over the first, for each of ``--repeats`` runs (each a fresh
+process: the figures vary from process to process) and their median. Figures only: nothing is
+asserted.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import resource
+import statistics
+import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
@@ -52,6 +58,50 @@ def _option(text: str) -> tuple[str, object]:
         return key, raw
 
 
+def measure(args: argparse.Namespace) -> dict[str, Any]:
+    """One run in this process: the checkpoints' (frames, peak, now, output rows), the frame
+    rate and the stage breakdown."""
+    options = dict(_option(text) for text in args.detector_option)
+    checkpoints = sorted({int(v) for v in args.at.split(",")})
+
+    from densepeds.pipeline import Pipeline, track_rows
+    from densepeds.video import open_source
+
+    if not args.input.exists():
+        raise SystemExit(f"{args.input}: missing (set DENSEPEDS_SHARED to the shared data folder)")
+    src = open_source(args.input)
+    start = time.perf_counter()
+    pipe = Pipeline("yoloseg", detector_options=options)
+    pipe.detector()
+    pipe.reid()
+    print(
+        f"models loaded: peak {peak_rss_mib():.0f} MiB, now {current_rss_mib():.0f} MiB",
+        file=sys.stderr,
+    )
+    rows: list[tuple[float, ...]] = []  # `densepeds run` keeps these to write at the end
+    table: list[tuple[int, float, float, int]] = []
+    frames = 0
+    for frame_no, tracks in pipe.run(src, args.frames):
+        rows.extend(track_rows(frame_no, tracks))
+        frames += 1
+        if frames in checkpoints:
+            table.append((frames, peak_rss_mib(), current_rss_mib(), len(rows)))
+            print(
+                f"after {frames} frames: peak {table[-1][1]:.0f} MiB, now {table[-1][2]:.0f} MiB "
+                f"({time.perf_counter() - start:.0f} s)",
+                file=sys.stderr,
+                flush=True,
+            )
+    if frames < max(checkpoints):
+        print(f"note: the range held only {frames} frames", file=sys.stderr)
+    return {"table": table, "fps": pipe.times.fps, "breakdown": pipe.times.breakdown()}
+
+
+def growth(table: list[list[float]]) -> float:
+    """Peak RSS at the last checkpoint over the first, percent."""
+    return 100 * (table[-1][1] / table[0][1] - 1)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument(
@@ -66,48 +116,50 @@ def main() -> int:
         metavar="KEY=VALUE",
         help="override a detector default (e.g. dequantize=true)",
     )
+    ap.add_argument(
+        "--repeats", type=int, default=3, help="runs, each in a fresh process (default 3)"
+    )
+    ap.add_argument("--one", action="store_true", help=argparse.SUPPRESS)  # a repeat's process
     ap.add_argument("--write", type=Path, help="also write the figures to this markdown file")
     args = ap.parse_args()
-    options = dict(_option(text) for text in args.detector_option)
-    checkpoints = sorted({int(v) for v in args.at.split(",")})
-
-    from densepeds.pipeline import Pipeline, track_rows
-    from densepeds.video import open_source
-
-    if not args.input.exists():
-        raise SystemExit(f"{args.input}: missing (set DENSEPEDS_SHARED to the shared data folder)")
+    if args.one:
+        print(json.dumps(measure(args)))
+        return 0
+    if args.repeats < 1:
+        raise SystemExit(f"--repeats must be >= 1, got {args.repeats}")
     load_before = os.getloadavg()
-    src = open_source(args.input)
-    start = time.perf_counter()
-    pipe = Pipeline("yoloseg", detector_options=options)
-    pipe.detector()
-    pipe.reid()
-    print(f"models loaded: peak {peak_rss_mib():.0f} MiB, now {current_rss_mib():.0f} MiB")
-    rows: list[tuple[float, ...]] = []  # `densepeds run` keeps these to write at the end
-    table: list[tuple[int, float, float, int]] = []
-    frames = 0
-    for frame_no, tracks in pipe.run(src, args.frames):
-        rows.extend(track_rows(frame_no, tracks))
-        frames += 1
-        if frames in checkpoints:
-            table.append((frames, peak_rss_mib(), current_rss_mib(), len(rows)))
-            print(
-                f"after {frames} frames: peak {table[-1][1]:.0f} MiB, now {table[-1][2]:.0f} MiB "
-                f"({time.perf_counter() - start:.0f} s)",
-                flush=True,
-            )
-    if frames < max(checkpoints):
-        print(f"note: the range held only {frames} frames", file=sys.stderr)
-    lines = ["| frames | peak RSS MiB | RSS now MiB | output rows |", "|---:|---:|---:|---:|"]
-    lines += [f"| {n} | {peak:.0f} | {now:.0f} | {nrows} |" for n, peak, now, nrows in table]
-    if len(table) >= 2:
-        first, last = table[0], table[-1]
-        growth = 100 * (last[1] / first[1] - 1)
+    own = [a for a in sys.argv[1:] if a != "--write" and not a.startswith("--write=")]
+    if args.write is not None and str(args.write) in own:
+        own.remove(str(args.write))
+    runs = []
+    for k in range(args.repeats):
+        print(f"repeat {k + 1} of {args.repeats}", file=sys.stderr)
+        done = subprocess.run(
+            [sys.executable, __file__, *own, "--one"], stdout=subprocess.PIPE, text=True
+        )
+        if done.returncode:
+            raise SystemExit(f"repeat {k + 1} failed (exit {done.returncode})")
+        runs.append(json.loads(done.stdout))
+    checkpoints = [int(row[0]) for row in runs[0]["table"]]
+    lines = [
+        "| frames | "
+        + " | ".join(f"run {k + 1} peak / now MiB" for k in range(len(runs)))
+        + " | output rows |",
+        "|---:|" + "---:|" * (len(runs) + 1),
+    ]
+    for i, n in enumerate(checkpoints):
+        cells = " | ".join(f"{r['table'][i][1]:.0f} / {r['table'][i][2]:.0f}" for r in runs)
+        lines.append(f"| {n} | {cells} | {runs[0]['table'][i][3]} |")
+    options = dict(_option(text) for text in args.detector_option)
+    if len(checkpoints) >= 2:
+        grown = [growth(r["table"]) for r in runs]
         lines += [
             "",
-            f"Peak RSS after {last[0]} frames is {growth:+.1f}% of the peak after {first[0]} "
-            f"({args.input.name}, detector options {options or 'default'}, "
-            f"{pipe.times.fps:.2f} fps; {pipe.times.breakdown()}).",
+            f"Peak RSS after {checkpoints[-1]} frames over the peak after {checkpoints[0]}: "
+            + ", ".join(f"{g:+.1f}%" for g in grown)
+            + f" (median **{statistics.median(grown):+.1f}%**; {args.input.name}, detector "
+            f"options {options or 'default'}; run 1 at {runs[0]['fps']:.2f} fps: "
+            f"{runs[0]['breakdown']}).",
         ]
     print("\n" + "\n".join(lines))
     if args.write:
@@ -119,10 +171,12 @@ def main() -> int:
             "",
             f"    {command}",
             "",
-            f"Machine: {os.cpu_count()} CPUs, load average before the run "
-            f"{'/'.join(f'{v:.1f}' for v in load_before)}, after it "
+            f"Machine: {os.cpu_count()} CPUs, load average before the runs "
+            f"{'/'.join(f'{v:.1f}' for v in load_before)}, after them "
             f"{'/'.join(f'{v:.1f}' for v in os.getloadavg())} (the frame rate depends on it, "
-            f"the memory does not); Python {sys.version.split()[0]}.",
+            f"the memory does not); Python {sys.version.split()[0]}. Each run is a fresh "
+            "process; the same run's memory differs from process to process (how the C "
+            "allocator's heaps fragment depends on the threads' timing), so every run is shown.",
             "",
         ]
         args.write.write_text("\n".join(header + lines) + "\n")

@@ -11,6 +11,7 @@ masks (for benchmarks).
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -38,9 +39,9 @@ from densepeds.types import Detections
 
 LETTERBOX_GREY = 114
 MIN_FOCUS_SIDE = 8  # pixels: a focus view cut smaller than this by the frame's edge is skipped
-# Views a thread prepares and runs in one onnxruntime call: the input's and the activations'
-# memory stays bounded however many views a frame has (focus views grow with the people lost);
-# the outputs do not change.
+# Views per thread letterboxed, run in one onnxruntime call and reduced to their candidates at
+# a time (YoloSegDetector.views_per_call): the frame's memory stays bounded however many views
+# it has (focus views grow with the people lost); the outputs do not change.
 VIEWS_PER_THREAD = 4
 EXPECTED = (
     "a YOLOv8/YOLO11-seg ONNX model: one image input [1,3,H,W] or [1,H,W,3] (RGB in [0,1]) and "
@@ -48,6 +49,21 @@ EXPECTED = (
     "(a re-ID model given as the detector? give the detector with --detector-model; "
     "`densepeds models` lists the known ones)"
 )
+
+
+@dataclass(frozen=True)
+class _Picked:
+    """Anchors above the score threshold: their view in the frame and raw prediction rows."""
+
+    view_idx: npt.NDArray[np.intp]
+    rows: np.ndarray  # [K, 4 + classes + masks]
+
+    @staticmethod
+    def join(parts: list[_Picked]) -> _Picked:
+        """The parts of one frame (at least one: a frame has at least one view) as one."""
+        return _Picked(
+            np.concatenate([p.view_idx for p in parts]), np.concatenate([p.rows for p in parts])
+        )
 
 
 @dataclass(frozen=True)
@@ -241,12 +257,7 @@ class YoloSegDetector:
         return np.ascontiguousarray(x)
 
     def _infer(self, batch_u8: npt.NDArray[np.uint8]) -> tuple[np.ndarray, np.ndarray]:
-        """batch_u8: BGR uint8 [B, H, W, 3] letterboxed views -> (predictions, prototypes), at
-        most ``VIEWS_PER_THREAD`` views per thread at a time (model input and activations)."""
-        most = VIEWS_PER_THREAD * (self.threads or onnxutil.available_cpus())
-        if len(batch_u8) > most:
-            parts = [self._infer(batch_u8[i : i + most]) for i in range(0, len(batch_u8), most)]
-            return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+        """batch_u8: BGR uint8 [B, H, W, 3] letterboxed views -> (predictions, prototypes)."""
         x = self.prepare(batch_u8)
         if self.batch_views:
             out = self._run_views(x)
@@ -256,6 +267,12 @@ class YoloSegDetector:
         preds = np.concatenate([p[self.pred_index] for p in parts])
         protos = np.concatenate([p[self.proto_index] for p in parts])
         return preds, protos
+
+    def views_per_call(self) -> int:
+        """Views letterboxed, run and reduced to their candidates at a time: at most
+        ``VIEWS_PER_THREAD`` per thread, so that the frame's memory stays bounded however
+        many views it has (the input, the activations and the raw predictions of one part)."""
+        return VIEWS_PER_THREAD * (self.threads or onnxutil.available_cpus())
 
     def _run_views(self, x: npt.NDArray[np.float32]) -> list[np.ndarray]:
         """The model on a batch of views: with ``threads`` None split one part per CPU where
@@ -340,11 +357,18 @@ class YoloSegDetector:
         views += self.focus_views(width, height)
         self._focus = np.zeros((0, 4))
         self.last_views = len(views)
-        batch = self.letterbox(frame, views)
-        clock = self._tick("preprocess", clock)
-        preds, protos = self._infer(batch)
-        clock = self._tick("inference", clock)
-        found = self.candidates(preds, views, width, height)
+        picked: list[_Picked] = []
+        protos: list[np.ndarray] = []  # per view
+        most = self.views_per_call()
+        for start in range(0, len(views), most):
+            batch = self.letterbox(frame, views[start : start + most])
+            clock = self._tick("preprocess", clock)
+            preds, part_protos = self._infer(batch)
+            clock = self._tick("inference", clock)
+            picked.append(self._pick(preds, start))
+            protos.extend(part_protos)
+            clock = self._tick("boxes", clock)
+        found = self._merge(_Picked.join(picked), views, width, height)
         # The tile choice learns from the detections kept from the tiles, not the focus views.
         seen = found.view_idx < tiles
         if self.tiles == "auto":
@@ -369,13 +393,21 @@ class YoloSegDetector:
         self, preds: np.ndarray, views: list[_View], width: int, height: int
     ) -> Candidates:
         """The detections kept from the views' raw predictions, in frame coordinates."""
+        return self._merge(self._pick(preds, 0), views, width, height)
+
+    def _pick(self, preds: np.ndarray, first_view: int) -> _Picked:
+        """The person anchors above ``score_threshold`` in a batch of views' raw predictions
+        (the batch's first view is view ``first_view`` of the frame)."""
         if self.pred_transposed:
             preds = preds.transpose(0, 2, 1)
-        scores_all = preds[:, 4 + self.person_class, :]
-        view_idx, anchor_idx = np.nonzero(scores_all > self.score_threshold)
+        view_idx, anchor_idx = np.nonzero(preds[:, 4 + self.person_class, :] > self.score_threshold)
+        return _Picked(view_idx + first_view, preds[view_idx, :, anchor_idx])
+
+    def _merge(self, picked: _Picked, views: list[_View], width: int, height: int) -> Candidates:
+        """The picked anchors as frame boxes, merged across the views."""
+        view_idx, cand = picked.view_idx, picked.rows
         if len(view_idx) == 0:
             return Candidates.empty(self.num_masks)
-        cand = preds[view_idx, :, anchor_idx]  # [K, C]
         scores = cand[:, 4 + self.person_class]
         cxcy = cand[:, 0:2] * self.box_scale
         half = cand[:, 2:4] * self.box_scale / 2
@@ -401,7 +433,7 @@ class YoloSegDetector:
         self,
         found: Candidates,
         views: list[_View],
-        protos: np.ndarray,
+        protos: Sequence[np.ndarray],
         width: int,
         height: int,
     ) -> tuple[list[npt.NDArray[np.bool_]], npt.NDArray[np.int32]]:
@@ -414,7 +446,7 @@ class YoloSegDetector:
         coefs: np.ndarray,
         view_idx: np.ndarray,
         views: list[_View],
-        protos: np.ndarray,
+        protos: Sequence[np.ndarray],
         width: int,
         height: int,
     ) -> tuple[list[npt.NDArray[np.bool_]], npt.NDArray[np.int32]]:
