@@ -11,14 +11,20 @@ Runs are kept in ``out/cache/focus-*.npz``, keyed by the cell, the scale and the
 installed package (any code change misses the cache).
 
 The scale is chosen leave-one-out: for each cell, the scale with the best mean HOTA on the other
-three is scored on it. Recall per visibility bin (MOT20-01-dev only: its ground truth has
-visibility) compares the tracker's output with the detector without focus views (scale 0), the
-baseline a tracker has to beat, and with the detector's own detections at that scale.
+three is scored on it. The closed loop makes each run one draw: other views give other detections
+and other identities. So the float cells are also run at scale 0 and the default scale with the
+detector's boxes moved by sub-pixel amounts (``NOISE_SEEDS``, as ``jitter_check.py`` moves the
+det cells' boxes), and the spread over those seeds is reported beside the gain.
+
+Recall per visibility bin (MOT20-01-dev only: its ground truth has visibility) compares the
+tracker's output with the detector without focus views (scale 0), the baseline a tracker has to
+beat, and with the detector's own detections at that scale.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import hashlib
 import os
 import platform
@@ -28,6 +34,7 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
@@ -37,6 +44,7 @@ import numpy.typing as npt
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import accuracy_grid as grid  # noqa: E402
 import accuracy_tables as tables  # noqa: E402
+import jitter_check  # noqa: E402
 import realvideo  # noqa: E402
 
 SCALES = (0.0, 1.5, 2.0, 2.5, 3.0, 3.5)
@@ -44,6 +52,8 @@ CELLS = tuple(grid.Cell(seq, src) for src in ("float", "int8") for seq in grid.V
 COMMAND = "OPENBLAS_NUM_THREADS=1 python benchmarks/focus_lost.py --write"
 SHOWN = ("HOTA", "IDF1", "MOTA", "FP", "FN", "IDSW")
 RECALL_BIN = 1  # VISIBILITY_BINS index of 0.25-0.5, the bin issue 17's recall target names
+NOISE_SEEDS = (1, 2, 3)  # sub-pixel moves of the detector's boxes; seed 0: none (the table's runs)
+NOISE_CELLS = tuple(c for c in CELLS if c.source == "float")
 
 
 @dataclass
@@ -70,23 +80,44 @@ def code_stamp() -> str:
     return digest.hexdigest()[:12]
 
 
-def _cache_file(cache: Path, cell: grid.Cell, scale: float, frames: str) -> Path:
+def _cache_file(cache: Path, cell: grid.Cell, scale: float, frames: str, seed: int) -> Path:
     key = realvideo._cache_key(cell.seq, frames, cell.detector_options)
-    return cache / f"focus-{cell.seq}-{cell.source}-{key}-s{scale:g}-{code_stamp()}.npz"
+    moved = f"-j{seed}" if seed else ""
+    return cache / f"focus-{cell.seq}-{cell.source}-{key}-s{scale:g}{moved}-{code_stamp()}.npz"
+
+
+class Jittered:
+    """A detector whose boxes are moved by uniform [-SHIFT, SHIFT] px draws of ``seed``'s
+    generator, a new draw per frame (masks as they are); everything else is the detector's."""
+
+    def __init__(self, detector: Any, seed: int) -> None:
+        self.detector = detector
+        self.rng = np.random.default_rng(seed)
+
+    def __call__(self, frame: npt.NDArray[np.uint8]) -> Any:
+        dets = self.detector(frame)
+        move = self.rng.uniform(-jitter_check.SHIFT, jitter_check.SHIFT, dets.boxes.shape)
+        return dataclasses.replace(dets, boxes=(dets.boxes + move).astype(dets.boxes.dtype))
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.detector, name)
 
 
 def _split(flat: npt.NDArray[np.float64], counts: npt.NDArray[np.int64]) -> list[np.ndarray]:
     return list(np.split(flat, np.cumsum(counts)[:-1])) if len(counts) else []
 
 
-def run_cell(cell: grid.Cell, scale: float, cache: Path, frames: str | None = None) -> Run:
+def run_cell(
+    cell: grid.Cell, scale: float, cache: Path, frames: str | None = None, seed: int = 0
+) -> Run:
     """Track ``cell`` live with the detector's ``focus_scale`` at ``scale`` (cached), on its
-    video's dev frames or ``frames`` ("A:B")."""
+    video's dev frames or ``frames`` ("A:B"); ``seed`` > 0 moves the detector's boxes
+    (``Jittered``)."""
     from densepeds.motio import read_seqinfo
     from densepeds.pipeline import Pipeline
 
     frames = frames or grid.VIDEOS[cell.seq]
-    path = _cache_file(cache, cell, scale, frames)
+    path = _cache_file(cache, cell, scale, frames, seed)
     if path.is_file():
         z = np.load(path)
         return Run(
@@ -101,6 +132,8 @@ def run_cell(cell: grid.Cell, scale: float, cache: Path, frames: str | None = No
     info = read_seqinfo(seq_dir)
     pipe.set_image_size(info.width, info.height)
     detector = pipe.detector()
+    if seed:
+        pipe._detector = Jittered(detector, seed)
     rows: list[grid.Rows] = []
     detected: list[npt.NDArray[np.float64]] = []
     fed: list[npt.NDArray[np.float64]] = []
@@ -168,6 +201,73 @@ def score_all(cache: Path, scales: Sequence[float]) -> dict[tuple[str, float], S
     return out
 
 
+def noise_all(cache: Path, scales: Sequence[float]) -> dict[tuple[str, float, int], Scored]:
+    """The float cells at ``scales`` with the detector's boxes moved by each of NOISE_SEEDS."""
+    out: dict[tuple[str, float, int], Scored] = {}
+    with tempfile.TemporaryDirectory(prefix="densepeds-focus-") as tmp:
+        for cell in NOISE_CELLS:
+            for scale in scales:
+                for seed in NOISE_SEEDS:
+                    run = run_cell(cell, scale, cache, seed=seed)
+                    m = grid.score_cell(cell_data(cell, run), run.rows, Path(tmp))
+                    out[(cell.name, scale, seed)] = Scored(m, len(run.detected), run)
+                    print(
+                        f"{cell.name} focus {scale:g} seed {seed}: HOTA {m['HOTA']:.2f}",
+                        file=sys.stderr,
+                    )
+    return out
+
+
+def recall_ratio(cell: grid.Cell, run: Run, base: Run) -> float:
+    """Tracker recall of ``run`` at visibility RECALL_BIN over the detector's of ``base``."""
+    ours = tables.visibility_recall(cell_data(cell, run), run.fed, run.rows)
+    theirs = tables.visibility_recall(cell_data(cell, base), base.fed, base.rows)
+    return ours.found["tracker"][RECALL_BIN] / max(theirs.found["detector"][RECALL_BIN], 1)
+
+
+def noise_lines(
+    scored: Mapping[tuple[str, float], Scored],
+    noise: Mapping[tuple[str, float, int], Scored],
+    default: float,
+) -> list[str]:
+    """Per float cell: HOTA (and on MOT20 the recall ratio) per seed, without focus views and at
+    the default scale, with the gain per seed."""
+    seeds = (0, *NOISE_SEEDS)
+    lo, hi = tables.VISIBILITY_BINS[RECALL_BIN]
+    lines = [
+        "Noise: the float cells again with every box the detector gives moved by its own uniform "
+        f"draw in [-{jitter_check.SHIFT:g}, {jitter_check.SHIFT:g}] px (seeds "
+        f"{', '.join(map(str, NOISE_SEEDS))}; seed 0 is the table above), without focus views "
+        f"and at the default scale {default:g}. `recall x`: the tracker's recall at visibility "
+        f"{lo:g}-{hi:g} over the detector's without focus views in the same seed.",
+        "",
+        "| cell | figure | " + " | ".join(f"seed {k}" for k in seeds) + " | mean | sd |",
+        "|---|---|" + "---:|" * (len(seeds) + 2),
+    ]
+
+    def run_of(cell: grid.Cell, scale: float, seed: int) -> Scored:
+        return scored[(cell.name, scale)] if seed == 0 else noise[(cell.name, scale, seed)]
+
+    for cell in NOISE_CELLS:
+        rows: dict[str, list[float]] = {}
+        for scale in (0.0, default):
+            rows[f"HOTA at {scale:g}"] = [run_of(cell, scale, k).metrics["HOTA"] for k in seeds]
+        rows["HOTA gain"] = [b - a for a, b in zip(*rows.values(), strict=True)]
+        if cell.seq.startswith("MOT20"):
+            rows[f"recall x at {default:g}"] = [
+                recall_ratio(cell, run_of(cell, default, k).run, run_of(cell, 0.0, k).run)
+                for k in seeds
+            ]
+        for name, vals in rows.items():
+            a = np.array(vals)
+            lines.append(
+                f"| {cell.name} | {name} | "
+                + " | ".join(f"{v:+.2f}" if "gain" in name else f"{v:.2f}" for v in a)
+                + f" | {a.mean():.2f} | {a.std():.2f} |"
+            )
+    return lines
+
+
 def by_scale(
     scored: Mapping[tuple[str, float], Scored], scales: Sequence[float]
 ) -> dict[str, dict[str, dict[str, float]]]:
@@ -177,10 +277,18 @@ def by_scale(
     }
 
 
-def report(scored: Mapping[tuple[str, float], Scored], scales: Sequence[float]) -> list[str]:
+def default_scale() -> float:
     from densepeds.detect.yoloseg import YoloSegDetector
 
-    default = YoloSegDetector.__init__.__kwdefaults__["focus_scale"]  # type: ignore[index]
+    return float(YoloSegDetector.__init__.__kwdefaults__["focus_scale"])  # type: ignore[index]
+
+
+def report(
+    scored: Mapping[tuple[str, float], Scored],
+    scales: Sequence[float],
+    noise: Mapping[tuple[str, float, int], Scored] | None = None,
+) -> list[str]:
+    default = default_scale()
     cpu = platform.processor() or platform.machine()
     lines = [
         "# The detector's focus on the people the tracker lost",
@@ -193,7 +301,7 @@ def report(scored: Mapping[tuple[str, float], Scored], scales: Sequence[float]) 
         "frames 1-214 and PETS09-S2L1-dev frames 1-397, the shared segmenter's float copy "
         "(`/float`) and its int8 graph as shipped (`/int8`).",
         "",
-        f"Regenerate with `{COMMAND}` (about 60 minutes on 2 cores without `out/cache`). "
+        f"Regenerate with `{COMMAND}` (about 80 minutes on 2 cores without `out/cache`). "
         f"Package default: `focus_scale={default:g}`. Machine: {os.cpu_count()} CPUs ({cpu}), "
         f"Python {platform.python_version()}.",
         "",
@@ -232,6 +340,8 @@ def report(scored: Mapping[tuple[str, float], Scored], scales: Sequence[float]) 
     zero = grid.mean_metric(base)
     lines += [f"| mean | | {held:.2f} | {tuned:.2f} | {zero:.2f} | {held - zero:+.2f} |", ""]
     lines += recall_lines(scored, scales)
+    if noise:
+        lines += ["", *noise_lines(scored, noise, default)]
     lines += [
         "",
         "`views a frame`: the detector's views (tiles and focus views) over the run's frames; "
@@ -281,10 +391,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--cache", type=Path, default=grid.REPO / "out" / "cache")
     ap.add_argument("--scales", type=float, nargs="+", default=list(SCALES))
     ap.add_argument("--write", action="store_true", help="write benchmarks/results/focus.md")
+    ap.add_argument(
+        "--no-noise", action="store_true", help="skip the runs with moved boxes (NOISE_SEEDS)"
+    )
     args = ap.parse_args(argv)
-    scales = sorted(set([0.0, *args.scales]))
+    scales = sorted(set([0.0, default_scale(), *args.scales]))
     scored = score_all(args.cache, scales)
-    lines = report(scored, scales)
+    noise = None if args.no_noise else noise_all(args.cache, (0.0, default_scale()))
+    lines = report(scored, scales, noise)
     if args.write:
         tables._write(tables.RESULTS, "focus.md", lines)
     else:
