@@ -74,9 +74,9 @@ def session_options(threads: int | None) -> ort.SessionOptions:
     # tracker or other processes, spinning burned ~40% more CPU time and was slower in wall
     # time too (benchmarks/results/speed.md). Outputs are unchanged.
     opts.add_session_config_entry("session.intra_op.allow_spinning", "0")
-    # No memory arena: the batches change size from frame to frame (focus views, crops), and
-    # the arena grows to each new size and never gives memory back, so a long run's memory
-    # crept up (benchmarks/results/memory.md); without it the frame rate is the same.
+    # No memory arena: batches change size from frame to frame (focus views, crops), and an
+    # arena grows to each new size and keeps it, so a long run's memory would keep growing
+    # (benchmarks/results/memory.md); the frame rate is the same without it.
     opts.enable_cpu_mem_arena = False
     return opts
 
