@@ -105,8 +105,10 @@ CANDIDATES: dict[str, dict[str, Any]] = {
     "reid_margin 0.3": {"reid_margin": 0.3},
     "amodal_width_quantile off": {"amodal_width_quantile": 0.0},
     "amodal_width_quantile 0.6": {"amodal_width_quantile": 0.6},
+    "amodal_width_quantile 0.75": {"amodal_width_quantile": 0.75},
     "amodal_width_quantile 0.85": {"amodal_width_quantile": 0.85},
-    "amodal_width_coverage 0.05": {"amodal_width_coverage": 0.05},
+    "amodal_width_coverage 0.02": {"amodal_width_coverage": 0.02},
+    "amodal_width_coverage 0.1 (covered only)": {"amodal_width_coverage": 0.1},
     "amodal_width_coverage 0.3": {"amodal_width_coverage": 0.3},
 }
 # What the package defaults were chosen on: update this where a default is tuned again.
@@ -122,8 +124,8 @@ TUNED_ON = {
     "`appearance_apart` and `motion_person_height` on all 15 cells by leave-one-out; "
     "`coast_aspect_state` on the two `/float` videos, checked by leave-one-out; "
     "`coast_aspect_quantile` on the two `/float` videos, checked by leave-one-out; "
-    "`tentative_max_age` 0 on the two `/float` videos; `amodal_width_quantile` on the four "
-    "video cells, checked by leave-one-out; `reid_newborn` and `reid_margin`, which "
+    "`tentative_max_age` 0 on the two `/float` videos; `amodal_width_quantile` and "
+    "`amodal_width_coverage` on the four video cells, checked by leave-one-out; `reid_newborn` and `reid_margin`, which "
     "act only with embeddings, on the four video cells and checked by leave-one-out)",
 }
 UNTUNED = (

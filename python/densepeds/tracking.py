@@ -241,7 +241,8 @@ amodal_width_quantile   float  0.0         [0, 1]               a matched track'
 amodal_width_coverage   float  0.1         [0, 1]               covered fraction (by reported boxes
                                                                 nearer the camera) of a matched
                                                                 track's reported box that widens it
-                                                                (amodal_width_quantile)
+                                                                (amodal_width_quantile; 0: every
+                                                                matched box, covered or not)
 coast_min_hits          int    6           0..=4294967295       an unmatched track is reported
                                                                 (output_lost, occluded_output) only
                                                                 once it has been matched at least

@@ -5,7 +5,9 @@
 //! MOTChallenge annotates the whole person. A matched box that is covered by reported boxes nearer
 //! the camera (lower foot point) and narrower than the scene's people seen whole (a high quantile
 //! of every matched detection's aspect ratio, [`crate::crowd_aspect`]) is reported at that width,
-//! about its own centre. Reporting only: the track's state and its matching are unchanged.
+//! about its own centre (with a coverage of 0, every narrower matched box: a detector's boxes
+//! can be tighter than the annotation's whole person). Reporting only: the track's state and its
+//! matching are unchanged.
 
 use crate::cost::{box_from_centre, centre, BBox};
 use crate::occlusion::{covered_fraction, nearer, Scene};

@@ -478,7 +478,7 @@ tracker_params! {
         amodal_width_quantile: f64 = 0.0, UNIT,
             "a matched track's reported box covered at least amodal_width_coverage by reported boxes nearer the camera (lower foot point) is at least as wide as this quantile of the aspect ratios of every track's matched detections makes its height: a person seen in part reported at the width of one seen whole, as MOTChallenge annotates them (reporting only; 0: off)";
         amodal_width_coverage: f64 = 0.1, UNIT,
-            "covered fraction (by reported boxes nearer the camera) of a matched track's reported box that widens it (amodal_width_quantile)";
+            "covered fraction (by reported boxes nearer the camera) of a matched track's reported box that widens it (amodal_width_quantile; 0: every matched box, covered or not)";
         coast_min_hits: u32 = 6, ints(0, U32_MAX),
             "an unmatched track is reported (output_lost, occluded_output) only once it has been matched at least this many times (a young track lost at once is more often a false detection than a person; 0: off)";
         reid_newborn: u32 = 4, ints(0, U32_MAX),
