@@ -125,8 +125,9 @@ TUNED_ON = {
     "`coast_aspect_state` on the two `/float` videos, checked by leave-one-out; "
     "`coast_aspect_quantile` on the two `/float` videos, checked by leave-one-out; "
     "`tentative_max_age` 0 on the two `/float` videos; `amodal_width_quantile` and "
-    "`amodal_width_coverage` on the four video cells, checked by leave-one-out; `reid_newborn` and `reid_margin`, which "
-    "act only with embeddings, on the four video cells and checked by leave-one-out)",
+    "`amodal_width_coverage` on the four video cells, checked by leave-one-out; `reid_newborn` "
+    "and `reid_margin`, which act only with embeddings, on the four video cells and checked by "
+    "leave-one-out)",
 }
 UNTUNED = (
     "every `/frcnn` and `/int8` cell for all but the score reading, `score_quantile_ceiling`, "
