@@ -135,7 +135,8 @@ def cell_frames(data: grid.CellData, config: grid.Config) -> tuple[list[Frame], 
         back = np.full(len(dets), -1)
         back[kept] = np.arange(len(kept))
         matched = tracks.det_index >= 0
-        out_fed = np.where(matched, back[np.where(matched, tracks.det_index, 0)], -1)
+        out_fed = np.full(len(tracks.det_index), -1)
+        out_fed[matched] = back[tracks.det_index[matched]]  # safe on a frame without detections
         g = gt[gt[:, 0] == k]
         ped = g[(g[:, 7] == 1) & (g[:, 6] != 0)]
         frames.append(
