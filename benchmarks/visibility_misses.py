@@ -28,7 +28,7 @@ import argparse
 import sys
 from collections import Counter
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -61,6 +61,7 @@ class Frame:
     out: npt.NDArray[np.float64]  # [T, 4] the reported boxes
     out_ids: npt.NDArray[np.int64]  # [T]
     out_fed: npt.NDArray[np.int64]  # [T] the fed box each reported track was matched to, or -1
+    visibility: npt.NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))  # [G]
 
 
 def inside_share(a: npt.NDArray[np.float64], b: npt.NDArray[np.float64]) -> np.ndarray:
@@ -148,23 +149,19 @@ def cell_frames(data: grid.CellData, config: grid.Config) -> tuple[list[Frame], 
                 np.asarray(tracks.boxes, np.float64).reshape(-1, 4),
                 np.asarray(tracks.ids, np.int64),
                 out_fed.astype(np.int64),
+                ped[:, 8].astype(np.float64),
             )
         )
     return frames, float(pipe.params["det_threshold"])
 
 
 def report(data: grid.CellData, config: grid.Config, band: tuple[float, float]) -> list[str]:
-    from densepeds.motio import read_gt
-
     frames, det_threshold = cell_frames(data, config)
-    gt = read_gt(data.seq_dir / "gt" / "gt.txt")
     counts: Counter[int] = Counter()
     total = 0
     last: dict[int, int] = {}
-    for k, frame in enumerate(frames, 1):
-        g = gt[gt[:, 0] == k]
-        vis = g[(g[:, 7] == 1) & (g[:, 6] != 0)][:, 8]
-        in_band = (vis >= band[0]) & (vis < band[1])
+    for frame in frames:
+        in_band = (frame.visibility >= band[0]) & (frame.visibility < band[1])
         total += int(in_band.sum())
         counts.update(classify(frame, in_band, last, det_threshold))
     missed = sum(counts.values())
