@@ -140,7 +140,7 @@ def _cache_key(seq: str, frames: str, detector_options: dict[str, Any]) -> str:
         settings = {k: v for k, v in settings.items() if k not in tiling.PEOPLE_SETTINGS}
         if skip != 1:  # a fixed grid that skips empty tiles between full scans
             settings["full_scan_every"] = skip
-            rules += (tiling.occupied_tiles, tiling.SkipSchedule)
+            rules += (tiling.occupied_tiles, tiling.SkipSchedule, tiling.sliding_windows)
     items = sorted((k, repr(v)) for k, v in settings.items())
     source = "".join(inspect.getsource(f) for f in rules)
     rule = hashlib.sha1(source.encode()).hexdigest()[:8]

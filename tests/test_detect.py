@@ -28,6 +28,7 @@ from densepeds.detect.tiling import (
     occupied_tiles,
     parse_grid,
     people_tiles,
+    sliding_windows,
 )
 from densepeds.detect.yoloseg import YoloSegDetector
 from densepeds.errors import InputError, ModelError, ParameterError
@@ -743,6 +744,65 @@ def test_fixed_grid_skips_empty_tiles_between_full_scans() -> None:
         always.observe(corner)
     with pytest.raises(ParameterError):
         SkipSchedule(0)
+
+
+def _grown(people: np.ndarray, margin: float, width: int, height: int) -> np.ndarray:
+    h = people[:, 3] - people[:, 1]
+    grown = people + np.outer(h * margin, [-1.0, -1.0, 1.0, 1.0])
+    return np.clip(grown, 0, [width, height, width, height])
+
+
+def test_sliding_windows_hold_everyone_whole_in_fewer_views() -> None:
+    """Random crowds on a 2x2 grid: where windows are given, each is the grid's tile size inside
+    the frame, every person (grown by the margin) lies inside one of them, and they are fewer
+    than the tiles occupied_tiles keeps; a person straddling the grid's middle needs one window
+    where two tiles show them whole."""
+    width, height, margin = 768, 576, 0.1
+    grid = make_tiles(width, height, 2, 2)
+    tw, th = grid[0].x1 - grid[0].x0, grid[0].y1 - grid[0].y0
+    rng = np.random.default_rng(3)
+    used = 0
+    for _ in range(300):
+        n = int(rng.integers(1, 12))
+        h = rng.uniform(30, 200, n)
+        x = rng.uniform(0, width - 0.45 * h)
+        y = rng.uniform(0, height - h)
+        people = np.c_[x, y, x + 0.4 * h, y + h]
+        windows = sliding_windows(grid, people, margin)
+        if windows is None:
+            continue
+        used += 1
+        assert len(windows) < len(occupied_tiles(grid, people, margin))
+        for w in windows:
+            assert w.x0 >= 0 and w.x1 <= width and w.y0 >= 0 and w.y1 <= height
+            assert (w.x1 - w.x0, w.y1 - w.y0) == (tw, th)
+            assert w.interior == (w.x0 > 0, w.y0 > 0, w.x1 < width, w.y1 < height)
+        for box in _grown(people, margin, width, height):
+            # Whole in a window, to the pixel the window's integer edges round to.
+            assert any(
+                box[0] >= w.x0 and box[1] >= w.y0 and box[2] <= w.x1 + 1 and box[3] <= w.y1 + 1
+                for w in windows
+            )
+    assert used > 50
+    middle = np.array([[364.0, 250.0, 404.0, 350.0], [380.0, 260.0, 420.0, 360.0]])
+    assert len(occupied_tiles(grid, middle, margin)) >= 2
+    windows = sliding_windows(grid, middle, margin)
+    assert windows is not None and len(windows) == 1
+    # Nobody, a box larger than a window, or a layout of several tile sizes: no windows.
+    assert sliding_windows(grid, np.zeros((0, 4)), margin) is None
+    assert sliding_windows(grid, np.array([[0.0, 0.0, 100.0, 500.0]]), margin) is None
+    assert sliding_windows(make_tiles(768, 576, 1, 1) + grid, middle, margin) is None
+    # The schedule of a fixed grid runs them between full scans (and the tiles without slide).
+    for slide, expected in ((True, windows), (False, None)):
+        schedule = SkipSchedule(full_scan_every=4, margin=margin, slide=slide)
+        assert schedule.tiles(grid) == grid
+        schedule.observe(middle)
+        between = schedule.tiles(grid)
+        assert not schedule.last_full
+        if expected is None:
+            assert between == [grid[k] for k in occupied_tiles(grid, middle, margin)]
+        else:
+            assert between == expected
 
 
 def test_yoloseg_fixed_grid_follows_its_schedule(tmp_path: Path) -> None:

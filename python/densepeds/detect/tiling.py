@@ -303,21 +303,65 @@ def occupied_tiles(tiles: list[Tile], people: FloatArray, margin: float) -> list
     return np.flatnonzero(shows.any(axis=0)).tolist()
 
 
+def sliding_windows(layout: list[Tile], people: FloatArray, margin: float) -> list[Tile] | None:
+    """Windows the size of the tiles of a fixed grid (``layout``, tiles of one size up to a
+    pixel), each placed anywhere in the frame the grid covers, such that every box of ``people``
+    grown by ``margin`` of its height (clipped to the frame) lies whole in one of them; None
+    where a grown box does not fit in a window, or the windows are not fewer than the tiles
+    ``occupied_tiles`` keeps. Greedy from the left: the leftmost box not yet held sets a
+    window's left edge, and its top edge is the one holding most of the boxes left under it."""
+    if not layout or not len(people):
+        return None
+    sizes = {(t.x1 - t.x0, t.y1 - t.y0) for t in layout}
+    tw, th = min(w for w, _ in sizes), min(h for _, h in sizes)
+    if max(w for w, _ in sizes) - tw > 1 or max(h for _, h in sizes) - th > 1:
+        return None  # not a grid of one tile size
+    width, height = max(t.x1 for t in layout), max(t.y1 for t in layout)
+    boxes = np.asarray(people, np.float64).reshape(-1, 4)
+    h = np.maximum(boxes[:, 3] - boxes[:, 1], 1.0)
+    grown = boxes + np.outer(h * margin, [-1.0, -1.0, 1.0, 1.0])
+    np.clip(grown, 0, [width, height, width, height], out=grown)
+    if (grown[:, 2] - grown[:, 0] > tw).any() or (grown[:, 3] - grown[:, 1] > th).any():
+        return None
+    windows: list[Tile] = []
+    left = np.ones(len(grown), bool)
+    while left.any():
+        rest = np.flatnonzero(left)
+        first = rest[np.argmin(grown[rest, 0])]
+        x0 = min(grown[first, 0], width - tw)
+        col = rest[(grown[rest, 0] >= x0) & (grown[rest, 2] <= x0 + tw)]
+        # Top edges that hold ``first``: each held box's own top, or first's bottom less th.
+        tops = np.append(grown[col, 1], grown[first, 3] - th).clip(0, height - th)
+        tops = tops[(tops <= grown[first, 1]) & (tops + th >= grown[first, 3])]
+        held = (grown[None, col, 1] >= tops[:, None]) & (grown[None, col, 3] <= tops[:, None] + th)
+        best = int(np.argmax(held.sum(axis=1)))
+        left[col[held[best]]] = False
+        x0i, y0i = math.floor(x0), math.floor(tops[best])
+        x1i, y1i = min(width, x0i + tw), min(height, y0i + th)
+        windows.append(Tile(x0i, y0i, x1i, y1i, (x0i > 0, y0i > 0, x1i < width, y1i < height)))
+    if len(windows) >= len(occupied_tiles(layout, people, margin)):
+        return None
+    return windows
+
+
 class SkipSchedule:
     """Which tiles of a fixed layout run each frame: all of them every ``full_scan_every``-th
     frame (a full scan, the first frame included), and on the frames between only those that
     show whole somebody detected in the last ``full_scan_every`` frames, the last full scan's
     included (``occupied_tiles``, people grown by ``margin`` of their height; no tile, so the
-    whole frame in one view, when nobody was). ``full_scan_every=1``: every frame a full scan.
+    whole frame in one view, when nobody was). With ``slide`` (a fixed grid) the frames between
+    run ``sliding_windows`` instead where it takes fewer views: windows of the grid's tile size
+    placed over those people. ``full_scan_every=1``: every frame a full scan.
     ``last_full`` says whether the last ``tiles`` call was one; ``observe`` feeds a frame's
     detections (a frame of another size, or another layout, starts with a full scan).
     """
 
-    def __init__(self, full_scan_every: int, margin: float = 0.1) -> None:
+    def __init__(self, full_scan_every: int, margin: float = 0.1, slide: bool = False) -> None:
         if full_scan_every < 1:
             raise ParameterError(f"full_scan_every must be >= 1, got {full_scan_every}")
         self.full_scan_every = full_scan_every
         self.margin = margin
+        self.slide = slide
         self._recent: list[FloatArray] = []
         self._layout: list[Tile] | None = None
         self._since_full = 0
@@ -339,6 +383,9 @@ class SkipSchedule:
         if not layout:
             return []
         people = np.concatenate(self._recent) if self._recent else np.zeros((0, 4))
+        windows = sliding_windows(layout, people, self.margin) if self.slide else None
+        if windows is not None:
+            return windows
         return [layout[k] for k in occupied_tiles(layout, people, self.margin)]
 
     def observe(self, boxes: FloatArray) -> None:

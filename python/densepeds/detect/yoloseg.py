@@ -121,8 +121,10 @@ class YoloSegDetector:
     frames whole (``tiling.occupied_tiles``; the whole frame in one view when nobody was
     found), so that the people who enter or were missed are looked for at least every k
     frames: fewer views at equal detector recall, but the tracks change (see
-    benchmarks/results/detector-recall.md). A fixed grid skips the same way
-    (``tiling.SkipSchedule``): all its tiles every k-th frame, between only the occupied ones.
+    benchmarks/results/detector-recall.md). A fixed grid skips too (``tiling.SkipSchedule``):
+    all its tiles every k-th frame; between, windows of its tile size placed over the people
+    found in the last k frames (``tiling.sliding_windows``) where they take fewer views than
+    the tiles that show them, else those tiles.
     ``benchmarks/detector_recall.py`` measures recall and views per choice.
 
     ``focus_scale`` (default 2.5; 0: off) adds, on the next frame, one view per box given to
@@ -189,7 +191,8 @@ class YoloSegDetector:
         self.people_tiles = PeopleTiles(
             max(self.input_w, self.input_h), person_share, max_tiles, max_scale, full_scan_every
         )
-        self.grid_schedule = SkipSchedule(full_scan_every)  # a fixed grid's tiles per frame
+        # A fixed grid's views per frame.
+        self.grid_schedule = SkipSchedule(full_scan_every, slide=True)
 
     # --- model contract -------------------------------------------------------------------
     def _read_contract(self) -> None:
