@@ -18,6 +18,7 @@ import argparse
 import hashlib
 import json
 import os
+import re
 import sys
 import tempfile
 import time
@@ -200,10 +201,11 @@ def _load_dets(path: Path) -> list[Any]:
 
 
 # Embedding variants: a kind is a feature kind of densepeds.segment.FEATURES, optionally followed
-# by ``+flip`` (ReID(flip=True)), ``+ctxF`` (ReID(context=F)) and/or ``+reuse`` (ReID(reuse=True):
-# embedded frame by frame, a detection that plainly continues one of the previous frame's keeps
-# its embedding; ``+reuse,KEY=VALUE,...`` sets densepeds.reid.ReusePolicy's fields), e.g.
-# ``segmented+flip``, ``segmented+reuse``, ``segmented+reuse,max_thumb_diff=15``.
+# by ``+flip`` (ReID(flip=True)), ``+ctxF`` (ReID(context=F)), ``+sHxW`` (ReID(input_size=(H, W)):
+# OSNet on H x W crops) and/or ``+reuse`` (ReID(reuse=True): embedded frame by frame, a detection
+# that plainly continues one of the previous frame's keeps its embedding; ``+reuse,KEY=VALUE,...``
+# sets densepeds.reid.ReusePolicy's fields), e.g. ``segmented+flip``, ``segmented+s192x96``,
+# ``segmented+reuse``, ``segmented+reuse,max_thumb_diff=15``.
 def kind_options(kind: str) -> tuple[str, dict[str, Any]]:
     """(feature kind, ReID options) of a cached embedding kind."""
     features, *extras = kind.split("+")
@@ -213,6 +215,9 @@ def kind_options(kind: str) -> tuple[str, dict[str, Any]]:
             options["flip"] = True
         elif extra.startswith("ctx"):
             options["context"] = float(extra[3:])
+        elif re.fullmatch(r"s\d+x\d+", extra):
+            h, w = extra[1:].split("x")
+            options["input_size"] = (int(h), int(w))
         elif extra.split(",")[0] == "reuse":
             from densepeds.reid import ReusePolicy
 
