@@ -364,7 +364,7 @@ def main() -> int:
         type=int,
         metavar="K",
         help="with --int8: also time ours (float and int8 on the default tiles, int8 on the "
-        "grid) with a full scan every K-th frame only (between, the tiles showing somebody; "
+        "grid) with a full scan every K-th frame only (between, the views showing somebody; "
         "YoloSegDetector full_scan_every)",
     )
     ap.add_argument(

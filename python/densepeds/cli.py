@@ -142,7 +142,8 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="K",
         type=int,
         help="the yoloseg detector runs all its views every K-th frame only, and in between just "
-        "the views that show somebody found in the last K frames (fewer views, faster; the tracks "
+        "the views that show somebody found in the last K frames (on a --tiles CxR grid, windows "
+        "of its tile size over those people where they take fewer views; faster, the tracks "
         "change); default 1: all views every frame",
     )
     run.add_argument(
