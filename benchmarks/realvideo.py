@@ -136,12 +136,14 @@ def _cache_key(seq: str, frames: str, detector_options: dict[str, Any]) -> str:
     if settings.get("tiles") == "auto":
         rules += (tiling.fit_perspective, tiling.people_tiles, tiling._people_tiles)
         rules += (tiling.occupied_tiles, tiling.SkipSchedule, tiling.PeopleTiles)
+        rules += (tiling.showing, tiling.sliding_windows)
     else:
         skip = settings.get("full_scan_every", 1)
         settings = {k: v for k, v in settings.items() if k not in tiling.PEOPLE_SETTINGS}
         if skip != 1:  # a fixed grid that skips empty tiles between full scans
             settings["full_scan_every"] = skip
-            rules += (tiling.occupied_tiles, tiling.SkipSchedule, tiling.sliding_windows)
+            rules += (tiling.occupied_tiles, tiling.SkipSchedule)
+            rules += (tiling.showing, tiling.sliding_windows)
     items = sorted((k, repr(v)) for k, v in settings.items())
     source = "".join(inspect.getsource(f) for f in rules)
     rule = hashlib.sha1(source.encode()).hexdigest()[:8]

@@ -28,6 +28,7 @@ from densepeds.detect.tiling import (
     occupied_tiles,
     parse_grid,
     people_tiles,
+    showing,
     sliding_windows,
 )
 from densepeds.detect.yoloseg import YoloSegDetector
@@ -788,21 +789,55 @@ def test_sliding_windows_hold_everyone_whole_in_fewer_views() -> None:
     assert len(occupied_tiles(grid, middle, margin)) >= 2
     windows = sliding_windows(grid, middle, margin)
     assert windows is not None and len(windows) == 1
-    # Nobody, a box larger than a window, or a layout of several tile sizes: no windows.
+    # Nobody, or a box larger than a window: no windows.
     assert sliding_windows(grid, np.zeros((0, 4)), margin) is None
     assert sliding_windows(grid, np.array([[0.0, 0.0, 100.0, 500.0]]), margin) is None
-    assert sliding_windows(make_tiles(768, 576, 1, 1) + grid, middle, margin) is None
-    # The schedule of a fixed grid runs them between full scans (and the tiles without slide).
-    for slide, expected in ((True, windows), (False, None)):
-        schedule = SkipSchedule(full_scan_every=4, margin=margin, slide=slide)
-        assert schedule.tiles(grid) == grid
-        schedule.observe(middle)
-        between = schedule.tiles(grid)
-        assert not schedule.last_full
-        if expected is None:
-            assert between == [grid[k] for k in occupied_tiles(grid, middle, margin)]
-        else:
-            assert between == expected
+    # The schedule runs them between full scans.
+    schedule = SkipSchedule(full_scan_every=4, margin=margin)
+    assert schedule.tiles(grid) == grid
+    schedule.observe(middle)
+    assert schedule.tiles(grid) == windows and not schedule.last_full
+
+
+def test_sliding_windows_on_bands_keep_each_persons_scale() -> None:
+    """Random crowds on a layout of two bands (people_tiles: small tiles far away, large ones
+    near): where windows are given, every person lies whole in one the size of a layout tile
+    that shows them whole (`showing`), so they are seen at the scale the layout has for them,
+    and the windows are fewer than the tiles occupied_tiles keeps."""
+    width, height, margin = 1920, 1080, 0.1
+    persp = Perspective(10.0, 0.12, 100.0, float(height))
+    layout = people_tiles(width, height, 320, persp, 0.25, 12, 3.0)
+    sizes = {(t.x1 - t.x0, t.y1 - t.y0) for t in layout}
+    assert len(sizes) == 2
+    rng = np.random.default_rng(5)
+    used = 0
+    for _ in range(200):
+        n = int(rng.integers(1, 25))
+        foot = rng.uniform(150, height, n)
+        h = np.array([persp.height(f) for f in foot]) * rng.uniform(0.8, 1.1, n)
+        x = rng.uniform(0, width - 0.4 * h)
+        people = np.c_[x, foot - h, x + 0.4 * h, foot].clip(0, [width, height, width, height])
+        windows = sliding_windows(layout, people, margin)
+        if windows is None:
+            continue
+        used += 1
+        assert len(windows) < len(occupied_tiles(layout, people, margin))
+        shows = showing(layout, people, margin)
+        grown = _grown(people, margin, width, height)
+        for p, box in enumerate(grown):
+            own = {
+                (layout[k].x1 - layout[k].x0, layout[k].y1 - layout[k].y0)
+                for k in np.flatnonzero(shows[p])
+            }
+            assert any(
+                box[0] >= w.x0
+                and box[1] >= w.y0
+                and box[2] <= w.x1 + 1
+                and box[3] <= w.y1 + 1
+                and (w.x1 - w.x0, w.y1 - w.y0) in own
+                for w in windows
+            )
+    assert used > 50
 
 
 def test_yoloseg_fixed_grid_follows_its_schedule(tmp_path: Path) -> None:

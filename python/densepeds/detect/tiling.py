@@ -279,7 +279,12 @@ def occupied_tiles(tiles: list[Tile], people: FloatArray, margin: float) -> list
     left out shows nobody whole."""
     if not tiles or not len(people):
         return []
-    boxes = np.asarray(people, np.float64)
+    return np.flatnonzero(showing(tiles, people, margin).any(axis=0)).tolist()
+
+
+def showing(tiles: list[Tile], people: FloatArray, margin: float) -> npt.NDArray[np.bool_]:
+    """[people, tiles]: the tiles ``occupied_tiles`` keeps for each person (see there)."""
+    boxes = np.asarray(people, np.float64).reshape(-1, 4)
     h = np.maximum(boxes[:, 3] - boxes[:, 1], 1.0)
     grown = boxes + np.outer(h * margin, [-1.0, -1.0, 1.0, 1.0])
     edges = np.array([[t.x0, t.y0, t.x1, t.y1] for t in tiles], np.float64)
@@ -300,43 +305,75 @@ def occupied_tiles(tiles: list[Tile], people: FloatArray, margin: float) -> list
     if nobody.any():
         inter = intersections(boxes[nobody], edges)
         shows[np.flatnonzero(nobody), np.argmax(inter, axis=1)] = True
-    return np.flatnonzero(shows.any(axis=0)).tolist()
+    return shows
 
 
 def sliding_windows(layout: list[Tile], people: FloatArray, margin: float) -> list[Tile] | None:
-    """Windows the size of the tiles of a fixed grid (``layout``, tiles of one size up to a
-    pixel), each placed anywhere in the frame the grid covers, such that every box of ``people``
-    grown by ``margin`` of its height (clipped to the frame) lies whole in one of them; None
-    where a grown box does not fit in a window, or the windows are not fewer than the tiles
-    ``occupied_tiles`` keeps. Greedy from the left: the leftmost box not yet held sets a
-    window's left edge, and its top edge is the one holding most of the boxes left under it."""
+    """Windows the size of the layout's tiles, each placed anywhere in the frame the layout
+    covers, such that every box of ``people`` grown by ``margin`` of its height (clipped to the
+    frame) lies whole in one of them; None where the windows are not fewer than the tiles
+    ``occupied_tiles`` keeps, or where a grown box fits no window it may go in. On a grid of
+    one tile size (up to a pixel) a box may go in any window it fits; on a layout of several
+    sizes (``people_tiles``' bands) only in one the size of a tile that shows it whole, so that
+    people are seen at the scale the layout has for them. Greedy from the left: the leftmost
+    box not yet held sets a window's left edge, and its size and top edge are those holding
+    most of the boxes left."""
     if not layout or not len(people):
         return None
-    sizes = {(t.x1 - t.x0, t.y1 - t.y0) for t in layout}
-    tw, th = min(w for w, _ in sizes), min(h for _, h in sizes)
-    if max(w for w, _ in sizes) - tw > 1 or max(h for _, h in sizes) - th > 1:
-        return None  # not a grid of one tile size
     width, height = max(t.x1 for t in layout), max(t.y1 for t in layout)
+    # Tile sizes, those within a pixel of each other as one (the smallest).
+    sizes: list[tuple[int, int]] = []
+    size_of = []  # per tile, its entry in sizes
+    for t in layout:
+        tw, th = t.x1 - t.x0, t.y1 - t.y0
+        near = [i for i, (sw, sh) in enumerate(sizes) if abs(sw - tw) <= 1 and abs(sh - th) <= 1]
+        if not near:
+            sizes.append((tw, th))
+        k = near[0] if near else len(sizes) - 1
+        sizes[k] = (min(sizes[k][0], tw), min(sizes[k][1], th))
+        size_of.append(k)
     boxes = np.asarray(people, np.float64).reshape(-1, 4)
     h = np.maximum(boxes[:, 3] - boxes[:, 1], 1.0)
     grown = boxes + np.outer(h * margin, [-1.0, -1.0, 1.0, 1.0])
     np.clip(grown, 0, [width, height, width, height], out=grown)
-    if (grown[:, 2] - grown[:, 0] > tw).any() or (grown[:, 3] - grown[:, 1] > th).any():
+    dims = np.array(sizes, np.float64)  # [sizes, 2]
+    # fits[p, s]: the grown box fits a window of size s (and, with several sizes, a tile of
+    # that size shows the person whole).
+    fits = (grown[:, None, 2] - grown[:, None, 0] <= dims[None, :, 0]) & (
+        grown[:, None, 3] - grown[:, None, 1] <= dims[None, :, 1]
+    )
+    if len(sizes) > 1:
+        shows = showing(layout, boxes, margin)
+        of_size = np.zeros((len(layout), len(sizes)), bool)
+        of_size[np.arange(len(layout)), size_of] = True
+        fits &= (shows.astype(np.int64) @ of_size) > 0
+    if not fits.any(axis=1).all():
         return None
     windows: list[Tile] = []
     left = np.ones(len(grown), bool)
     while left.any():
         rest = np.flatnonzero(left)
         first = rest[np.argmin(grown[rest, 0])]
-        x0 = min(grown[first, 0], width - tw)
-        col = rest[(grown[rest, 0] >= x0) & (grown[rest, 2] <= x0 + tw)]
-        # Top edges that hold ``first``: each held box's own top, or first's bottom less th.
-        tops = np.append(grown[col, 1], grown[first, 3] - th).clip(0, height - th)
-        tops = tops[(tops <= grown[first, 1]) & (tops + th >= grown[first, 3])]
-        held = (grown[None, col, 1] >= tops[:, None]) & (grown[None, col, 3] <= tops[:, None] + th)
-        best = int(np.argmax(held.sum(axis=1)))
-        left[col[held[best]]] = False
-        x0i, y0i = math.floor(x0), math.floor(tops[best])
+        best: tuple[int, int, float, npt.NDArray[np.intp]] | None = None  # count, size, top, held
+        for k in np.flatnonzero(fits[first]).tolist():
+            tw, th = sizes[k]
+            x0 = min(grown[first, 0], width - tw)
+            fit = rest[fits[rest, k]]
+            col = fit[(grown[fit, 0] >= x0) & (grown[fit, 2] <= x0 + tw)]
+            # Top edges that hold ``first``: each held box's own top, or first's bottom less th.
+            tops = np.append(grown[col, 1], grown[first, 3] - th).clip(0, height - th)
+            tops = tops[(tops <= grown[first, 1]) & (tops + th >= grown[first, 3])]
+            held = (grown[None, col, 1] >= tops[:, None]) & (
+                grown[None, col, 3] <= tops[:, None] + th
+            )
+            i = int(np.argmax(held.sum(axis=1)))
+            if best is None or held[i].sum() > best[0]:
+                best = (int(held[i].sum()), int(k), float(tops[i]), col[held[i]])
+        assert best is not None
+        _, k, top, taken = best
+        left[taken] = False
+        tw, th = sizes[k]
+        x0i, y0i = math.floor(min(grown[first, 0], width - tw)), math.floor(top)
         x1i, y1i = min(width, x0i + tw), min(height, y0i + th)
         windows.append(Tile(x0i, y0i, x1i, y1i, (x0i > 0, y0i > 0, x1i < width, y1i < height)))
     if len(windows) >= len(occupied_tiles(layout, people, margin)):
@@ -345,23 +382,22 @@ def sliding_windows(layout: list[Tile], people: FloatArray, margin: float) -> li
 
 
 class SkipSchedule:
-    """Which tiles of a fixed layout run each frame: all of them every ``full_scan_every``-th
-    frame (a full scan, the first frame included), and on the frames between only those that
-    show whole somebody detected in the last ``full_scan_every`` frames, the last full scan's
-    included (``occupied_tiles``, people grown by ``margin`` of their height; no tile, so the
-    whole frame in one view, when nobody was). With ``slide`` (a fixed grid) the frames between
-    run ``sliding_windows`` instead where it takes fewer views: windows of the grid's tile size
-    placed over those people. ``full_scan_every=1``: every frame a full scan.
+    """Which views of a fixed layout run each frame: all its tiles every ``full_scan_every``-th
+    frame (a full scan, the first frame included), and on the frames between views of the
+    people detected in the last ``full_scan_every`` frames, the last full scan's included
+    (people grown by ``margin`` of their height): windows of the layout's tile sizes placed
+    over them (``sliding_windows``) where that takes fewer views, else the tiles that show them
+    whole (``occupied_tiles``); no view, so the whole frame in one, when nobody was detected.
+    ``full_scan_every=1``: every frame a full scan.
     ``last_full`` says whether the last ``tiles`` call was one; ``observe`` feeds a frame's
     detections (a frame of another size, or another layout, starts with a full scan).
     """
 
-    def __init__(self, full_scan_every: int, margin: float = 0.1, slide: bool = False) -> None:
+    def __init__(self, full_scan_every: int, margin: float = 0.1) -> None:
         if full_scan_every < 1:
             raise ParameterError(f"full_scan_every must be >= 1, got {full_scan_every}")
         self.full_scan_every = full_scan_every
         self.margin = margin
-        self.slide = slide
         self._recent: list[FloatArray] = []
         self._layout: list[Tile] | None = None
         self._since_full = 0
@@ -383,7 +419,7 @@ class SkipSchedule:
         if not layout:
             return []
         people = np.concatenate(self._recent) if self._recent else np.zeros((0, 4))
-        windows = sliding_windows(layout, people, self.margin) if self.slide else None
+        windows = sliding_windows(layout, people, self.margin)
         if windows is not None:
             return windows
         return [layout[k] for k in occupied_tiles(layout, people, self.margin)]
@@ -410,8 +446,8 @@ class PeopleTiles:
     ``min_people`` confident detections (score >= ``min_score``) have been seen, then
     ``people_tiles`` on the perspective fitted to those of the last ``window`` full scans, at
     most ``max_tiles`` and at most ``GRID_MULTIPLE`` times the grid's views. The layout is
-    refitted on full scans only and kept until the next one; which of its tiles run on the
-    frames between is ``SkipSchedule``'s rule (``full_scan_every``, ``margin``), so that
+    refitted on full scans only and kept until the next one; which views run on the frames
+    between is ``SkipSchedule``'s rule (``full_scan_every``, ``margin``), so that
     people who enter or were missed are looked for at least every ``full_scan_every`` frames.
     ``last_full`` says whether the last ``tiles`` call was a full scan. ``observe`` feeds a
     frame's detections (a frame of another size starts over: another video).

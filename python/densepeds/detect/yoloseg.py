@@ -116,15 +116,14 @@ class YoloSegDetector:
     are seen): bands of square tiles sized so that a person there spans ``person_share`` of
     the input, magnified at most ``max_scale``, at most ``max_tiles`` views a frame and at most
     twice the fixed grid's (``tiling.GRID_MULTIPLE``); a fixed grid is given as "CxR".
-    ``full_scan_every=k`` (default 1: every frame) runs all of those tiles on every k-th frame
-    only, and on the frames between just the ones that show somebody found in the last k
-    frames whole (``tiling.occupied_tiles``; the whole frame in one view when nobody was
-    found), so that the people who enter or were missed are looked for at least every k
-    frames: fewer views at equal detector recall, but the tracks change (see
-    benchmarks/results/detector-recall.md). A fixed grid skips too (``tiling.SkipSchedule``):
-    all its tiles every k-th frame; between, windows of its tile size placed over the people
-    found in the last k frames (``tiling.sliding_windows``) where they take fewer views than
-    the tiles that show them, else those tiles.
+    ``full_scan_every=k`` (default 1: every frame) runs all of those tiles (or the fixed
+    grid's) on every k-th frame only, and on the frames between just views of the people found
+    in the last k frames (``tiling.SkipSchedule``): windows of the tiles' sizes placed over
+    them where that takes fewer views (``tiling.sliding_windows``; on the people's bands a
+    person goes in a window the size of a tile that shows them whole), else the tiles that
+    show them whole (``tiling.occupied_tiles``); the whole frame in one view when nobody was
+    found. The people who enter or were missed are looked for at least every k frames: fewer
+    views, but the tracks change (see benchmarks/results/detector-recall.md and fast.md).
     ``benchmarks/detector_recall.py`` measures recall and views per choice.
 
     ``focus_scale`` (default 2.5; 0: off) adds, on the next frame, one view per box given to
@@ -191,8 +190,7 @@ class YoloSegDetector:
         self.people_tiles = PeopleTiles(
             max(self.input_w, self.input_h), person_share, max_tiles, max_scale, full_scan_every
         )
-        # A fixed grid's views per frame.
-        self.grid_schedule = SkipSchedule(full_scan_every, slide=True)
+        self.grid_schedule = SkipSchedule(full_scan_every)  # a fixed grid's tiles per frame
 
     # --- model contract -------------------------------------------------------------------
     def _read_contract(self) -> None:
