@@ -356,9 +356,9 @@ def fast_table(cache: Path, quiet: bool = False) -> list[str]:
         "`densepeds.detect.tiling.auto_grid` for the frame size ("
         + ", ".join(f"{c.seq} {c.detector_options['tiles']}" for c in cells if c.source == "grid")
         + "). `a full scan every 4th frame` is the detector's `full_scan_every=4`: all the "
-        "tiles every 4th frame, between only those that show somebody found in the last 4 "
-        "frames whole, or on a fixed grid windows of its tile size placed over those people "
-        "where they take fewer views (`densepeds.detect.tiling`). These cells are not part of "
+        "tiles every 4th frame, between only views of the people found in the last 4 frames: "
+        "windows of the tiles' sizes placed over them, or the tiles that show them whole, "
+        "whichever are fewer (`densepeds.detect.tiling.SkipSchedule`). These cells are not part of "
         "the 15-cell dev grid or its mean "
         f"(`accuracy.md`). onnxruntime {_ort_version()}. Speed of the same settings: `speed.md`.",
         "",

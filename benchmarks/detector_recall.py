@@ -137,8 +137,9 @@ def markdown(rows: Sequence[tuple[str, str, dict[str, float]]], args: Any, load:
         "detection filter (one-to-one, IoU >= 0.5), unmatched detections, views (tiles) and "
         f"detector milliseconds per frame, {frames}; {load}. A choice's own detector options "
         "follow its colon (`auto:full_scan_every=K`: the people's whole layout every K-th frame, "
-        "between only the tiles that show somebody found in the last K frames whole; "
-        "`densepeds.detect.tiling.PeopleTiles`). Regenerate with:",
+        "between only views of the people found in the last K frames: windows of the tiles' "
+        "sizes placed over them, or the tiles that show them whole, whichever are fewer; "
+        "`densepeds.detect.tiling.SkipSchedule`). Regenerate with:",
         "",
         "    OPENBLAS_NUM_THREADS=1 python benchmarks/detector_recall.py --tiles "
         + " ".join(args.tiles)

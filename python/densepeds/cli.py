@@ -142,9 +142,9 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="K",
         type=int,
         help="the yoloseg detector runs all its views every K-th frame only, and in between just "
-        "the views that show somebody found in the last K frames (on a --tiles CxR grid, windows "
-        "of its tile size over those people where they take fewer views; faster, the tracks "
-        "change); default 1: all views every frame",
+        "views of the people found in the last K frames (windows of the tiles' sizes placed over "
+        "them, or the tiles that show them, whichever are fewer; faster, the tracks change); "
+        "default 1: all views every frame",
     )
     run.add_argument(
         "--focus-lost",
