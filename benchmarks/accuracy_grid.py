@@ -355,7 +355,10 @@ def fast_table(cache: Path, quiet: bool = False) -> list[str]:
         "(`benchmarks/results/int8.md`); the reference's grid is "
         "`densepeds.detect.tiling.auto_grid` for the frame size ("
         + ", ".join(f"{c.seq} {c.detector_options['tiles']}" for c in cells if c.source == "grid")
-        + "). `a full scan every 4th frame` is the detector's `full_scan_every=4`: all the "
+        + "); on it the detector runs its input cut to the tiles' shape (`YoloSegDetector`'s "
+        "default `fit_input`: the same scale, less padding; the people-following tiles are "
+        "square and run the model's own). `a full scan every 4th frame` is the detector's "
+        "`full_scan_every=4`: all the "
         "tiles every 4th frame, between only views of the people found in the last 4 frames: "
         "windows of the tiles' sizes placed over them, or the tiles that show them whole, "
         "whichever are fewer (`densepeds.detect.tiling.SkipSchedule`). These cells are not part of "

@@ -126,20 +126,24 @@ def cached_settings(detector_options: dict[str, Any]) -> dict[str, Any]:
 def _cache_key(seq: str, frames: str, detector_options: dict[str, Any]) -> str:
     import inspect
 
-    from densepeds.detect import tiling
+    from densepeds.detect import anchor_grid, tiling
+    from densepeds.detect.yoloseg import fitted_input
 
     # The model choice is keyed by the file it resolves to (the stamp), not by the option.
     settings = {k: v for k, v in cached_settings(detector_options).items() if k != "quantized"}
     # Tiles chosen by a rule in the code: a change of the rule must miss the cache. The
     # settings of the people-following rule ("auto") enter the key only where it is chosen.
     rules: tuple[Any, ...] = (tiling.auto_grid,)
-    if settings.get("tiles") == "auto":
+    if settings.get("tiles") == "auto":  # square tiles: the model's own input (fit_input)
+        settings.pop("fit_input", None)
         rules += (tiling.fit_perspective, tiling.people_tiles, tiling._people_tiles)
         rules += (tiling.occupied_tiles, tiling.SkipSchedule, tiling.PeopleTiles)
         rules += (tiling.showing, tiling.sliding_windows)
     else:
         skip = settings.get("full_scan_every", 1)
         settings = {k: v for k, v in settings.items() if k not in tiling.PEOPLE_SETTINGS}
+        if settings.get("fit_input"):  # the input cut to the tiles' shape, its anchors rebuilt
+            rules += (fitted_input, anchor_grid)
         if skip != 1:  # a fixed grid that skips empty tiles between full scans
             settings["full_scan_every"] = skip
             rules += (tiling.occupied_tiles, tiling.SkipSchedule)

@@ -867,12 +867,15 @@ def pets09_gt_boxes(gt: np.ndarray, frame: int) -> np.ndarray:
 
 def test_fixed_grid_skipping_on_a_real_video_keeps_the_people() -> None:
     """PETS09-S2L1 frames 41-64 on the reference's 2x2 grid with a full scan every 4th frame:
-    the frames between run fewer views and find about as many people as every tile would."""
+    the frames between run fewer views and find about as many people as every tile would (the
+    model's own input size: the schedule alone; tests/test_anchor_grid.py has the fitted one)."""
     gt = read_gt(shared_path("data", "PETS09-S2L1-dev", "gt", "gt.txt"))
     frames = video_frames(shared_path("data", "PETS09-S2L1-dev", "vtest.avi"), list(range(41, 65)))
     model = shared_path("models", YOLO)
-    full = make_detector("yoloseg", model, threads=2, tiles="2x2")
-    skip = make_detector("yoloseg", model, threads=2, tiles="2x2", full_scan_every=4)
+    full = make_detector("yoloseg", model, threads=2, tiles="2x2", fit_input=False)
+    skip = make_detector(
+        "yoloseg", model, threads=2, tiles="2x2", full_scan_every=4, fit_input=False
+    )
     assert isinstance(full, YoloSegDetector) and isinstance(skip, YoloSegDetector)
     found, views, scans, total = _full_against_skip(
         frames, lambda k: pets09_gt_boxes(gt, k), full, skip, lambda: skip.grid_schedule.last_full

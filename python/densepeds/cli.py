@@ -151,8 +151,9 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="S",
         type=float,
         help="the yoloseg detector also looks closer at each person the tracker reports without "
-        "a detection (lost behind others): one more view a frame each, a square S times their "
-        "height (more people found in dense crowds, slower there); 0 turns it off; default: "
+        "a detection (lost behind others): one more view a frame each, of the model input's "
+        "shape, its longer side S times their height (more people found in dense crowds, "
+        "slower there); 0 turns it off; default: "
         "the detector's own (YoloSegDetector's focus_scale)",
     )
     run.add_argument("--reid-model", metavar="PATH", help=REID_MODEL_HELP)

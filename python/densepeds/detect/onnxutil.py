@@ -258,24 +258,39 @@ def with_dynamic_batch(model: onnx.ModelProto) -> onnx.ModelProto:
 
 
 def with_input_size(model: onnx.ModelProto, height: int, width: int) -> onnx.ModelProto:
-    """A copy of an NCHW image model whose input is ``height`` x ``width``.
+    """A copy of an image model (NCHW or NHWC, fixed size) whose input is ``height`` x ``width``.
 
-    Only for fully convolutional graphs (sizes flow from the input: no constant spatial shape
-    inside); onnxruntime rejects the copy at load time otherwise.
+    For fully convolutional graphs: sizes flow from the input, except a YOLO head's anchor grid,
+    which is rebuilt for the new size (:func:`densepeds.detect.anchor_grid.follow_input`).
+    onnxruntime rejects the copy at load time where another constant spatial shape is inside.
     """
     import onnx
+
+    from densepeds.detect import anchor_grid
 
     out = onnx.ModelProto()
     out.CopyFrom(model)
     dims = out.graph.input[0].type.tensor_type.shape.dim
-    if len(dims) != 4 or dims[1].dim_value != 3 or height < 1 or width < 1:
-        raise ModelError(f"cannot give a {height}x{width} input to a model whose input is not NCHW")
-    for d, v in zip(dims[2:], (height, width), strict=True):
-        d.Clear()
-        d.dim_value = v
-    for value in out.graph.output:
-        del value.type.tensor_type.shape.dim[:]
+    channels = [i for i in (1, 3) if len(dims) == 4 and dims[i].dim_value == 3]
+    if not channels or height < 1 or width < 1:
+        raise ModelError(
+            f"cannot give a {height}x{width} input to a model whose input is not NCHW or NHWC"
+        )
+    spatial = (2, 3) if channels[0] == 1 else (1, 2)
+    before = (dims[spatial[0]].dim_value, dims[spatial[1]].dim_value)
+    if not all(before):
+        raise ModelError("cannot resize a model whose input size is not fixed")
+    for i, v in zip(spatial, (height, width), strict=True):
+        dims[i].Clear()
+        dims[i].dim_value = v
+    for value in out.graph.output:  # sizes follow the input: the rank stays, the sizes go
+        for k, d in enumerate(value.type.tensor_type.shape.dim):
+            if k > 0:
+                d.Clear()
+                d.dim_param = f"{value.name}_{k}"
     del out.graph.value_info[:]
+    if (height, width) != before:
+        anchor_grid.follow_input(out, before, (height, width))
     return out
 
 
@@ -289,7 +304,7 @@ def batched_session(
     """A session accepting any batch size, and whether the model had to be rewritten for it.
 
     ``dequantize`` runs a float copy of a QDQ-quantised model (see :func:`dequantized`);
-    ``input_size`` (height, width) resizes an NCHW model's input (see :func:`with_input_size`).
+    ``input_size`` (height, width) resizes the model's input (see :func:`with_input_size`).
     """
     recipe = f"batched dequantize={dequantize} input_size={input_size}"
     target = optimised_file(path, recipe, threads)

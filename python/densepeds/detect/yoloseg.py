@@ -10,6 +10,7 @@ masks (for benchmarks).
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -20,7 +21,7 @@ import numpy as np
 import numpy.typing as npt
 import onnxruntime as ort
 
-from densepeds.detect import onnxutil, split_batch
+from densepeds.detect import anchor_grid, onnxutil, split_batch
 from densepeds.detect.tiling import (
     PeopleTiles,
     SkipSchedule,
@@ -126,9 +127,19 @@ class YoloSegDetector:
     views, but the tracks change (see benchmarks/results/detector-recall.md and fast.md).
     ``benchmarks/detector_recall.py`` measures recall and views per choice.
 
+    ``fit_input=True`` (default) runs the model, on a fixed grid (or the whole frame, untiled),
+    with its input cut to the shape of the grid's tiles (:func:`fitted_input`: the same scale,
+    each side rounded up to whole cells of the coarsest level), so that less grey padding goes
+    through the network: a 2x2 grid of a 4:3 frame runs 320x256 instead of 320x320, about 20%
+    less work a view. Its anchor grid is rebuilt for that size (``anchor_grid``); a model whose
+    anchor grid is in a form not known runs at its own size. The people-following tiles are
+    square and always run the model's own size. Detections change slightly (the padding's
+    border differs); ``fit_input=False`` runs the model's own size everywhere.
+
     ``focus_scale`` (default 2.5; 0: off) adds, on the next frame, one view per box given to
     :meth:`focus` (``Pipeline`` gives the tracks it reports without a detection: people lost
-    behind others), a square centred on the box with side ``focus_scale`` times its height, so
+    behind others), a region of the input's shape centred on the box, its longer side
+    ``focus_scale`` times the box's height (a square for a square input), so
     that the people there are seen magnified; their detections merge with the tiles' in the
     same cross-view suppression, and the tile choice learns only from the detections kept from
     the tiles' views. Nothing changes until :meth:`focus` is called. The default was chosen
@@ -155,6 +166,7 @@ class YoloSegDetector:
         max_scale: float = 3.0,
         full_scan_every: int = 1,
         focus_scale: float = 2.5,
+        fit_input: bool = True,
     ) -> None:
         if not 0.0 <= focus_scale < float("inf"):
             raise ParameterError(f"focus_scale must be >= 0 and finite, got {focus_scale}")
@@ -178,6 +190,9 @@ class YoloSegDetector:
         # threads=None: views split one part per CPU, each on one thread (split_batch), where
         # they divide evenly; other batches run as one call on every CPU (_wide, made when
         # first needed).
+        self.fit_input = fit_input
+        self._input_size: tuple[int, int] | None = None  # None: the model's own
+        self._unfit: set[tuple[int, int]] = set()  # sizes the model cannot be given
         self.session, self.rewritten = onnxutil.batched_session(
             self.path, 1 if threads is None else threads, dequantize=self.dequantize
         )
@@ -187,6 +202,7 @@ class YoloSegDetector:
         self.stage_seconds: dict[str, float] = {}
         self.last_views = 0  # views (tiles) of the last frame
         self._read_contract()
+        self.model_h, self.model_w = self.input_h, self.input_w  # the model's own input size
         self.people_tiles = PeopleTiles(
             max(self.input_w, self.input_h), person_share, max_tiles, max_scale, full_scan_every
         )
@@ -291,8 +307,32 @@ class YoloSegDetector:
         if onnxutil.available_cpus() == 1:
             return self.session
         if self._wide is None:
-            self._wide, _ = onnxutil.batched_session(self.path, None, dequantize=self.dequantize)
+            self._wide, _ = onnxutil.batched_session(
+                self.path, None, dequantize=self.dequantize, input_size=self._input_size
+            )
         return self._wide
+
+    def _fit_input(self, tiles: list[Tile]) -> None:
+        """``fit_input``: the model's input cut to the fixed layout's views (see the class
+        docstring); the model's own size where it cannot be given that size."""
+        tile_w = max(t.x1 - t.x0 for t in tiles)
+        tile_h = max(t.y1 - t.y0 for t in tiles)
+        size = fitted_input(tile_w, tile_h, self.model_h, self.model_w)
+        if not self.fit_input or size == (self.input_h, self.input_w) or size in self._unfit:
+            return
+        wanted = None if size == (self.model_h, self.model_w) else size
+        try:
+            session, self.rewritten = onnxutil.batched_session(
+                self.path,
+                1 if self.threads is None else self.threads,
+                dequantize=self.dequantize,
+                input_size=wanted,
+            )
+        except ModelError:  # e.g. an anchor grid in a form it does not know: runs as it is
+            self._unfit.add(size)
+            return
+        self.session, self._wide, self._input_size = session, None, wanted
+        self._read_contract()
 
     # --- detection --------------------------------------------------------------------------
     def views(self, width: int, height: int) -> list[_View]:
@@ -300,8 +340,9 @@ class YoloSegDetector:
         if self.tiles == "auto":
             tiles = self.people_tiles.tiles(width, height)
         else:
-            cols, rows = parse_grid(self.tiles, width, height, max(self.input_w, self.input_h))
+            cols, rows = parse_grid(self.tiles, width, height, max(self.model_w, self.model_h))
             grid = make_tiles(width, height, cols, rows) if cols * rows > 1 else []
+            self._fit_input(grid or [whole])
             tiles = self.grid_schedule.tiles(grid)
         regions = [(t, True) for t in tiles]
         if not tiles or self.full_frame:
@@ -340,9 +381,12 @@ class YoloSegDetector:
         """The views of the boxes given to :meth:`focus` (none with ``focus_scale`` 0)."""
         out = []
         for b in self._focus if self.focus_scale > 0 else []:
-            cx, cy, side = (b[0] + b[2]) / 2, (b[1] + b[3]) / 2, self.focus_scale * (b[3] - b[1])
-            x0, y0 = int(max(0, cx - side / 2)), int(max(0, cy - side / 2))
-            x1, y1 = int(min(width, cx + side / 2)), int(min(height, cy + side / 2))
+            # The input's shape, its longer side focus_scale times the box's height.
+            side = self.focus_scale * (b[3] - b[1]) / max(self.input_w, self.input_h)
+            half_w, half_h = side * self.input_w / 2, side * self.input_h / 2
+            cx, cy = (b[0] + b[2]) / 2, (b[1] + b[3]) / 2
+            x0, y0 = int(max(0, cx - half_w)), int(max(0, cy - half_h))
+            x1, y1 = int(min(width, cx + half_w)), int(min(height, cy + half_h))
             if x1 - x0 < MIN_FOCUS_SIDE or y1 - y0 < MIN_FOCUS_SIDE:
                 continue
             tile = Tile(x0, y0, x1, y1, (x0 > 0, y0 > 0, x1 < width, y1 < height))
@@ -516,6 +560,19 @@ def choose_model(model: Path, quantized: bool | None) -> Path:
             "`densepeds models quantize --calibrate VIDEO`, or delete it"
         )
     return found
+
+
+def fitted_input(tile_w: int, tile_h: int, model_h: int, model_w: int) -> tuple[int, int]:
+    """(height, width) of an input that shows a ``tile_w`` x ``tile_h`` view at the scale the
+    model's own ``model_h`` x ``model_w`` input does, with less padding: each side the view's
+    at that scale, rounded up to whole cells of the coarsest level, at most the model's."""
+    scale = min(model_w / tile_w, model_h / tile_h)
+    cell = anchor_grid.STRIDES[-1]
+
+    def side(view: float, most: int) -> int:
+        return min(most, math.ceil(view * scale / cell - 1e-9) * cell)
+
+    return side(tile_h, model_h), side(tile_w, model_w)
 
 
 def _cell_span(lo: int, hi: int, origin: int, step: float, cells: int) -> tuple[int, int]:
