@@ -415,7 +415,9 @@ def main() -> int:
         "closer look at the people the tracker lost: `benchmarks/results/focus.md`), as every "
         "other row runs (`results/fast.md` measures their accuracy without it); `ours on the "
         "grid` is that on the reference's fixed grid of tiles "
-        "(`densepeds.detect.tiling.auto_grid`).",
+        "(`densepeds.detect.tiling.auto_grid`), where the detector runs its input cut to the "
+        "tiles' shape (`YoloSegDetector`'s default `fit_input`: the same views at the same scale, "
+        "less padding).",
         "",
     ]
     with tempfile.TemporaryDirectory(prefix="densepeds-speed-") as tmp:
