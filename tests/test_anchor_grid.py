@@ -198,3 +198,17 @@ def test_the_fitted_input_finds_as_many_people_on_a_real_video() -> None:
             found[fit] = sum(recall(det(f), pets09_gt_boxes(gt, k))[0] for k, f in frames.items())
         print(f"full scan every {every}: found {found}")
         assert found[True] >= 0.95 * found[False] and found[False] > 100
+
+
+def test_a_detector_without_a_known_anchor_grid_runs_its_own_size(tmp_path: Path) -> None:
+    """A model whose boxes do not come from a known anchor grid (here: constant outputs) could
+    be resized by onnxruntime but its boxes would be wrong: it runs at its own size."""
+    from test_detect import tiny_yoloseg
+
+    model = tiny_yoloseg(tmp_path / "tiny.onnx")
+    with pytest.raises(ModelError, match="no anchor grid"):
+        onnxutil.with_input_size(onnxutil.load_model(model), 32, 64, anchors=True)
+    assert onnxutil.with_input_size(onnxutil.load_model(model), 32, 64)  # not asked: resized
+    det = YoloSegDetector(model, tiles="2x2", threads=1, focus_scale=0)
+    found = det(np.zeros((96, 128, 3), np.uint8))
+    assert (det.input_h, det.input_w) == (64, 64) and len(found.boxes) > 0

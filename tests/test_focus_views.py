@@ -39,9 +39,10 @@ def test_each_focus_box_adds_one_view_to_the_next_frame_only() -> None:
     box = [400.0, 200.0, 430.0, 280.0]
     det.focus([box, [0.0, 0.0, 2.0, 3.0]])  # the second is cut below MIN_FOCUS_SIDE: skipped
     (view,) = det.focus_views(960, 540)
-    side = 2.5 * 80
-    assert (view.tile.x0, view.tile.y0, view.tile.x1, view.tile.y1) == (315, 140, 515, 340)
-    assert view.tile.x1 - view.tile.x0 == side
+    # The input's shape (cut to the 3x2 tiles' shape, fit_input), its longer side 2.5 heights.
+    assert (det.input_h, det.input_w) == (288, 320)
+    assert (view.tile.x0, view.tile.y0, view.tile.x1, view.tile.y1) == (315, 150, 515, 330)
+    assert view.tile.x1 - view.tile.x0 == 2.5 * 80
     found = det(frame)
     assert det.last_views == 7 and len(found) > 10
     det(frame)
@@ -135,6 +136,7 @@ def test_many_views_run_a_few_at_a_time_with_the_same_detections(
     for per_thread in (yoloseg.VIEWS_PER_THREAD, 100):
         monkeypatch.setattr(yoloseg, "VIEWS_PER_THREAD", per_thread)
         det = YoloSegDetector(shared_path("models", YOLO), tiles=(3, 2), focus_scale=2.5)
+        det.views(*frame.shape[1::-1])  # the input cut to the tiles' shape (and probed) first
         calls: list[int] = []
         infer = det._infer
         monkeypatch.setattr(

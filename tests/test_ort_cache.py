@@ -172,8 +172,9 @@ def test_cached_graphs_give_bitwise_the_same_detections_and_embeddings(
         reid = ReID(osnet, threads=2)
         outputs = _outputs(det, reid, frames) + _outputs(qdq, reid, frames)
         results[mode] = (outputs, det.rewritten, qdq.rewritten, reid.rewritten)
-        if mode == "cold":
-            assert len(list(cache.glob("*.onnx"))) == 3
+        if mode == "cold":  # the float copy at its own size and cut to the tiles' shape,
+            # the graph as shipped (its int8 anchors stay: its own size), OSNet
+            assert len(list(cache.glob("*.onnx"))) == 4
     base, *flags = results["off"]
     assert sum(len(a) for a in base[::5]) > 20  # people found: the comparison means something
     for mode in ("cold", "warm"):

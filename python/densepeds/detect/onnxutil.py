@@ -257,11 +257,15 @@ def with_dynamic_batch(model: onnx.ModelProto) -> onnx.ModelProto:
     return out
 
 
-def with_input_size(model: onnx.ModelProto, height: int, width: int) -> onnx.ModelProto:
+def with_input_size(
+    model: onnx.ModelProto, height: int, width: int, *, anchors: bool = False
+) -> onnx.ModelProto:
     """A copy of an image model (NCHW or NHWC, fixed size) whose input is ``height`` x ``width``.
 
     For fully convolutional graphs: sizes flow from the input, except a YOLO head's anchor grid,
     which is rebuilt for the new size (:func:`densepeds.detect.anchor_grid.follow_input`).
+    ``anchors=True`` (a detector) requires that grid: a model whose anchors are not found in a
+    known form is a ModelError rather than a copy whose boxes could be silently wrong.
     onnxruntime rejects the copy at load time where another constant spatial shape is inside.
     """
     import onnx
@@ -289,8 +293,11 @@ def with_input_size(model: onnx.ModelProto, height: int, width: int) -> onnx.Mod
                 d.Clear()
                 d.dim_param = f"{value.name}_{k}"
     del out.graph.value_info[:]
-    if (height, width) != before:
-        anchor_grid.follow_input(out, before, (height, width))
+    if (height, width) == before:
+        return out
+    rebuilt = anchor_grid.follow_input(out, before, (height, width))
+    if anchors and not rebuilt:
+        raise ModelError("no anchor grid this package knows how to rebuild for another input size")
     return out
 
 
@@ -300,13 +307,16 @@ def batched_session(
     *,
     dequantize: bool = False,
     input_size: tuple[int, int] | None = None,
+    anchors: bool = False,
 ) -> tuple[ort.InferenceSession, bool]:
     """A session accepting any batch size, and whether the model had to be rewritten for it.
 
     ``dequantize`` runs a float copy of a QDQ-quantised model (see :func:`dequantized`);
-    ``input_size`` (height, width) resizes the model's input (see :func:`with_input_size`).
+    ``input_size`` (height, width) resizes the model's input (``anchors``: a detector whose
+    anchor grid must follow; see :func:`with_input_size`).
     """
-    recipe = f"batched dequantize={dequantize} input_size={input_size}"
+    anchors = anchors and input_size is not None
+    recipe = f"batched dequantize={dequantize} input_size={input_size} anchors={anchors}"
     target = optimised_file(path, recipe, threads)
     if target is not None:
         session = _cached_session(target, threads)
@@ -317,7 +327,7 @@ def batched_session(
     if dequantize:
         model = dequantized(model)
     if input_size is not None:
-        model = with_input_size(model, *input_size)
+        model = with_input_size(model, *input_size, anchors=anchors)
     rewritten = input_size is not None or has_fixed_batch(model)
     if rewritten:
         model = with_dynamic_batch(model)

@@ -308,7 +308,11 @@ class YoloSegDetector:
             return self.session
         if self._wide is None:
             self._wide, _ = onnxutil.batched_session(
-                self.path, None, dequantize=self.dequantize, input_size=self._input_size
+                self.path,
+                None,
+                dequantize=self.dequantize,
+                input_size=self._input_size,
+                anchors=True,
             )
         return self._wide
 
@@ -327,6 +331,7 @@ class YoloSegDetector:
                 1 if self.threads is None else self.threads,
                 dequantize=self.dequantize,
                 input_size=wanted,
+                anchors=True,
             )
         except ModelError:  # e.g. an anchor grid in a form it does not know: runs as it is
             self._unfit.add(size)
