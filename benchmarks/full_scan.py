@@ -98,17 +98,15 @@ def report(
         f"Regenerate with `{COMMAND}`. Package default: `full_scan_every={default}`. Machine: "
         f"{os.cpu_count()} CPUs ({cpu}), Python {platform.python_version()}.",
         "",
-        "| cell | K | " + " | ".join(SHOWN) + " | views a frame | s a frame |",
-        "|---|---:|" + "---:|" * (len(SHOWN) + 2),
+        "| cell | K | " + " | ".join(SHOWN) + " | views a frame |",
+        "|---|---:|" + "---:|" * (len(SHOWN) + 1),
     ]
     for name in names:
         for k in periods:
             m, run = scored[(name, k)]
             vals = " | ".join(grid._fmt(key, m[key]) for key in SHOWN)
             frames = len(run.detected)
-            lines.append(
-                f"| {name} | {k} | {vals} | {run.views / frames:.1f} | {run.seconds / frames:.2f} |"
-            )
+            lines.append(f"| {name} | {k} | {vals} | {run.views / frames:.1f} |")
     results = {f"full_scan_every={k}": {n: scored[(n, k)][0] for n in names} for k in periods}
     loo = tables.leave_one_out(results)
     every = results["full_scan_every=1"]
@@ -161,8 +159,7 @@ def report(
     lines += [
         "",
         "`views a frame`: the detector's views (tiles, windows and focus views) over the run's "
-        "frames; `s a frame`: the run's wall time over its frames (frame reading included; this "
-        "shared host's speed varies from run to run: `benchmarks/pipeline_speed.py` times "
+        "frames; the detector's time grows with them (`benchmarks/pipeline_speed.py` times "
         "settings against the reference, `results/speed.md`).",
     ]
     return lines
