@@ -314,31 +314,8 @@ def report(
             vals = " | ".join(grid._fmt(k, r.metrics[k]) for k in SHOWN)
             lines.append(f"| {cell.name} | {s:g} | {vals} | {r.run.views / r.frames:.1f} |")
     results = by_scale(scored, scales)
-    loo = tables.leave_one_out(results)
-    base = results["focus_scale=0"]
-    lines += [
-        "",
-        "Mean HOTA over the four cells: "
-        + ", ".join(f"{n}: {grid.mean_metric(r):.2f}" for n, r in results.items())
-        + f"; best on all four: `{loo[0].tuned}`.",
-        "",
-        "Leave-one-out: each cell scored at the scale best on the other three (mean HOTA), "
-        "beside the scale best on all four and no focus views.",
-        "",
-        "| left out | chosen on the others | its HOTA there (held out) | tuned (all cells) "
-        "| scale 0 | held out - scale 0 |",
-        "|---|---|---:|---:|---:|---:|",
-    ]
-    for r in loo:
-        zero = base[r.cell]["HOTA"]
-        lines.append(
-            f"| {r.cell} | {r.chosen} | {r.held_out:.2f} | {r.tuned_value:.2f} | {zero:.2f} "
-            f"| {r.held_out - zero:+.2f} |"
-        )
-    held = float(np.mean([r.held_out for r in loo]))
-    tuned = float(np.mean([r.tuned_value for r in loo]))
-    zero = grid.mean_metric(base)
-    lines += [f"| mean | | {held:.2f} | {tuned:.2f} | {zero:.2f} | {held - zero:+.2f} |", ""]
+    lines += loo_lines(results, "focus_scale=0", "scale", "no focus views", "scale 0")
+    lines += [""]
     lines += recall_lines(scored, scales)
     if noise:
         lines += ["", *noise_lines(scored, noise, default)]
@@ -348,6 +325,39 @@ def report(
         "the detector's time grows with them. `benchmarks/pipeline_speed.py` times the pipeline "
         "with and without focus views against the reference (`results/speed.md`).",
     ]
+    return lines
+
+
+def loo_lines(
+    results: Mapping[str, tables.Results], base: str, what: str, base_text: str, base_label: str
+) -> list[str]:
+    """Mean HOTA per candidate (``results``' keys) over the four cells, then each cell scored at
+    the candidate best on the other three, beside the one best on all four and ``base``."""
+    loo = tables.leave_one_out(results)
+    first = results[base]
+    lines = [
+        "",
+        "Mean HOTA over the four cells: "
+        + ", ".join(f"{n}: {grid.mean_metric(r):.2f}" for n, r in results.items())
+        + f"; best on all four: `{loo[0].tuned}`.",
+        "",
+        f"Leave-one-out: each cell scored at the {what} best on the other three (mean HOTA), "
+        f"beside the {what} best on all four and {base_text}.",
+        "",
+        "| left out | chosen on the others | its HOTA there (held out) | tuned (all cells) "
+        f"| {base_label} | held out - {base_label} |",
+        "|---|---|---:|---:|---:|---:|",
+    ]
+    for r in loo:
+        own = first[r.cell]["HOTA"]
+        lines.append(
+            f"| {r.cell} | {r.chosen} | {r.held_out:.2f} | {r.tuned_value:.2f} | {own:.2f} "
+            f"| {r.held_out - own:+.2f} |"
+        )
+    held = float(np.mean([r.held_out for r in loo]))
+    tuned = float(np.mean([r.tuned_value for r in loo]))
+    own_mean = grid.mean_metric(first)
+    lines.append(f"| mean | | {held:.2f} | {tuned:.2f} | {own_mean:.2f} | {held - own_mean:+.2f} |")
     return lines
 
 

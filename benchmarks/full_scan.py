@@ -108,31 +108,9 @@ def report(
             frames = len(run.detected)
             lines.append(f"| {name} | {k} | {vals} | {run.views / frames:.1f} |")
     results = {f"full_scan_every={k}": {n: scored[(n, k)][0] for n in names} for k in periods}
-    loo = tables.leave_one_out(results)
-    every = results["full_scan_every=1"]
-    lines += [
-        "",
-        "Mean HOTA over the four cells: "
-        + ", ".join(f"{n}: {grid.mean_metric(r):.2f}" for n, r in results.items())
-        + f"; best on all four: `{loo[0].tuned}`.",
-        "",
-        "Leave-one-out: each cell scored at the K best on the other three (mean HOTA), beside "
-        "the K best on all four and every tile every frame (K = 1).",
-        "",
-        "| left out | chosen on the others | its HOTA there (held out) | tuned (all cells) "
-        "| K = 1 | held out - K = 1 |",
-        "|---|---|---:|---:|---:|---:|",
-    ]
-    for r in loo:
-        one = every[r.cell]["HOTA"]
-        lines.append(
-            f"| {r.cell} | {r.chosen} | {r.held_out:.2f} | {r.tuned_value:.2f} | {one:.2f} "
-            f"| {r.held_out - one:+.2f} |"
-        )
-    held = float(np.mean([r.held_out for r in loo]))
-    tuned = float(np.mean([r.tuned_value for r in loo]))
-    one = grid.mean_metric(every)
-    lines += [f"| mean | | {held:.2f} | {tuned:.2f} | {one:.2f} | {held - one:+.2f} |"]
+    lines += focus_lost.loo_lines(
+        results, "full_scan_every=1", "K", "every tile every frame (K = 1)", "K = 1"
+    )
     if noise:
         seeds = (0, *focus_lost.NOISE_SEEDS)
         compared = sorted({k for _, k, _ in noise})
