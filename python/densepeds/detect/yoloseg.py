@@ -133,8 +133,9 @@ class YoloSegDetector:
     through the network: a 2x2 grid of a 4:3 frame runs 320x256 instead of 320x320, about 20%
     less work a view. Its anchor grid is rebuilt for that size (``anchor_grid``); a model whose
     anchor grid is in a form not known runs at its own size. The people-following tiles are
-    square and always run the model's own size. Detections change slightly (the padding's
-    border differs); ``fit_input=False`` runs the model's own size everywhere.
+    square and always run the model's own size. Boxes move by up to about a pixel (the rebuilt
+    anchors are exact where the shipped graph's are rounded, and the padding's border differs);
+    ``fit_input=False`` runs the model's own size everywhere.
 
     ``focus_scale`` (default 2.5; 0: off) adds, on the next frame, one view per box given to
     :meth:`focus` (``Pipeline`` gives the tracks it reports without a detection: people lost
