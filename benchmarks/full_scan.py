@@ -156,9 +156,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="densepeds-scan-") as tmp:
         for k in periods:
             for cell in cells(k):
-                scored[(grid.Cell(cell.seq, cell.source).name, k)] = score(
-                    cell, args.cache, Path(tmp)
-                )
+                scored[(cell.name, k)] = score(cell, args.cache, Path(tmp))
         if args.noise:
             means = {
                 k: np.mean([scored[(c.name, k)][0]["HOTA"] for c in focus_lost.CELLS])
@@ -169,7 +167,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 for cell in cells(k):
                     if cell.source != "float":
                         continue
-                    name = grid.Cell(cell.seq, cell.source).name
+                    name = cell.name
                     noise[(name, k, 0)] = scored[(name, k)][0]["HOTA"]
                     for seed in focus_lost.NOISE_SEEDS:
                         noise[(name, k, seed)] = score(cell, args.cache, Path(tmp), seed)[0]["HOTA"]
