@@ -2,10 +2,12 @@
 the peak after 100).
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/memory.py [--input VIDEO] [--frames 1:400] \
-        [--at 100,200,300,400] [--repeats 3] [--write benchmarks/results/memory.md]
+        [--at 100,200,300,400] [--repeats 3] [--write benchmarks/results/memory.md] \
+        [densepeds run's options: --tiles, --preset, --param KEY=VALUE, ...]
 
-Runs the package's pipeline with its defaults, as `densepeds run` does (detector, re-ID,
-tracker, every frame's tracks kept as output rows), over a video (default: the whole
+Runs the pipeline that `densepeds run` sets up (densepeds.runner.open_run: the yoloseg
+detector, re-ID and tracker with run's defaults, or the run options given; every frame's tracks
+kept as output rows), over a video (default: the whole
 MOT20-01 video, 429 frames; the dev sequence stops at 214), and prints the
 process's peak and current resident memory after the given numbers of frames, with the
 growth of the last checkpoint over the first, for each of ``--repeats`` runs (each a fresh
@@ -47,33 +49,19 @@ def peak_rss_mib() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # KiB on Linux
 
 
-def _option(text: str) -> tuple[str, object]:
-    key, _, raw = text.partition("=")
-    low = raw.lower()
-    if low in ("true", "false"):
-        return key, low == "true"
-    try:
-        return key, float(raw) if "." in raw else int(raw)
-    except ValueError:
-        return key, raw
-
-
 def measure(args: argparse.Namespace) -> dict[str, Any]:
     """One run in this process: the checkpoints' (frames, peak, now, output rows), the frame
     rate and the stage breakdown."""
-    options = dict(_option(text) for text in args.detector_option)
     checkpoints = sorted({int(v) for v in args.at.split(",")})
 
-    from densepeds.pipeline import Pipeline, track_rows
-    from densepeds.video import open_source
+    from densepeds.pipeline import track_rows
+    from densepeds.runner import RunOptions, RunSpec, open_run
 
     if not args.input.exists():
         raise SystemExit(f"{args.input}: missing (set DENSEPEDS_SHARED to the shared data folder)")
-    src = open_source(args.input)
     start = time.perf_counter()
-    pipe = Pipeline("yoloseg", detector_options=options)
-    pipe.detector()
-    pipe.reid()
+    spec = RunSpec.for_input(RunOptions.from_args(args), args.input, quiet=True)
+    src, pipe, dets, _, rng = open_run(spec)  # loads the models, as `densepeds run` does
     print(
         f"models loaded: peak {peak_rss_mib():.0f} MiB, now {current_rss_mib():.0f} MiB",
         file=sys.stderr,
@@ -81,8 +69,8 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     rows: list[tuple[float, ...]] = []  # `densepeds run` keeps these to write at the end
     table: list[tuple[int, float, float, int]] = []
     frames = 0
-    for frame_no, tracks in pipe.run(src, args.frames):
-        rows.extend(track_rows(frame_no, tracks))
+    for res in pipe.run_frames(src, rng, dets):
+        rows.extend(track_rows(res.frame_no, res.tracks))
         frames += 1
         if frames in checkpoints:
             table.append((frames, peak_rss_mib(), current_rss_mib(), len(rows)))
@@ -103,19 +91,18 @@ def growth(table: list[list[float]]) -> float:
 
 
 def main() -> int:
+    from densepeds.runner import RunOptions
+    from densepeds.runner.spec import add_run_options
+
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument(
         "--input", type=Path, default=SHARED / "data" / "MOT20-01-dev" / "MOT20-01-raw.mp4"
     )
-    ap.add_argument("--frames", default="1:400")
     ap.add_argument("--at", default="100,200,300,400", help="frame counts to report after")
-    ap.add_argument(
-        "--detector-option",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a detector default (e.g. dequantize=true)",
-    )
+    # The run's settings: `densepeds run`'s own options (its defaults, but the yoloseg detector
+    # and frames 1:400).
+    add_run_options(ap, shared_only=True)
+    ap.set_defaults(detector="yoloseg", frames="1:400")
     ap.add_argument(
         "--repeats", type=int, default=3, help="runs, each in a fresh process (default 3)"
     )
@@ -150,15 +137,19 @@ def main() -> int:
     for i, n in enumerate(checkpoints):
         cells = " | ".join(f"{r['table'][i][1]:.0f} / {r['table'][i][2]:.0f}" for r in runs)
         lines.append(f"| {n} | {cells} | {runs[0]['table'][i][3]} |")
-    options = dict(_option(text) for text in args.detector_option)
+    settings = {
+        k: v
+        for k, v in vars(RunOptions.from_args(args)).items()
+        if v != getattr(RunOptions(), k) and k != "frames"
+    }
     if len(checkpoints) >= 2:
         grown = [growth(r["table"]) for r in runs]
         lines += [
             "",
             f"Peak RSS after {checkpoints[-1]} frames over the peak after {checkpoints[0]}: "
             + ", ".join(f"{g:+.1f}%" for g in grown)
-            + f" (median **{statistics.median(grown):+.1f}%**; {args.input.name}, detector "
-            f"options {options or 'default'}; run 1 at {runs[0]['fps']:.2f} fps: "
+            + f" (median **{statistics.median(grown):+.1f}%**; {args.input.name}, run settings "
+            f"{settings}; run 1 at {runs[0]['fps']:.2f} fps: "
             f"{runs[0]['breakdown']}).",
         ]
     print("\n" + "\n".join(lines))

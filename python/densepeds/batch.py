@@ -20,8 +20,9 @@ import hashlib
 import os
 import sys
 import tempfile
+import textwrap
 import time
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -36,7 +37,7 @@ from densepeds.batch_plan import (
     write_json_atomic,
 )
 from densepeds.errors import ModelError, ParameterError
-from densepeds.pipeline import DETECTORS, FEATURES, MOTIONS
+from densepeds.runner.spec import add_run_options, presets_help
 
 __all__ = ["BatchResult", "JobRecord", "PlanItem", "Settings", "add_parser", "prepare", "run"]
 
@@ -167,41 +168,29 @@ def _model_files(settings: Settings) -> dict[str, Path]:
 def run(
     inputs: Iterable[str | os.PathLike[str]],
     out_dir: str | os.PathLike[str],
+    settings: Settings | None = None,
     *,
-    detector: str | None = None,
-    detector_model: str | None = None,
-    reid_model: str | None = None,
-    motion: str = "frvo",
-    features: str | None = None,
-    frames: str | None = None,
-    params: Mapping[str, Any] | None = None,
-    video: bool = False,
-    fill_gaps: int = 0,
     workers: int | None = None,
     threads: int = 1,
     address: str | None = None,
     progress: Callable[[JobRecord, int, int, float], None] | None = None,
+    **options: Any,
 ) -> BatchResult:
     """Track every input on Ray and return the records (see the module's docstring).
 
-    The tracking options are ``densepeds run``'s. ``workers``: inputs tracked at once (default:
-    this machine's CPUs / ``threads`` for a local Ray; as many as the cluster's CPUs allow with an
-    address); ``threads``: CPUs per worker (onnxruntime, OpenCV and motion threads).
-    ``progress(record, done, total, frames_per_second)`` is called as each input finishes.
-    Raises DensePedsError for a bad option or input list before any job runs; a failing input
-    only fails its own record.
+    The tracking options are ``densepeds run``'s: ``settings``, or as keywords ``options`` the
+    fields of :class:`densepeds.batch_plan.Settings` (those of densepeds.runner.RunOptions,
+    ``params`` a mapping of tracker parameters, and ``video``). ``workers``: inputs tracked at
+    once (default: this machine's CPUs / ``threads`` for a local Ray; as many as the cluster's
+    CPUs allow with an address); ``threads``: CPUs per worker (onnxruntime, OpenCV and motion
+    threads). ``progress(record, done, total, frames_per_second)`` is called as each input
+    finishes. Raises DensePedsError for a bad option or input list before any job runs; a
+    failing input only fails its own record.
     """
-    settings = Settings(
-        detector=detector,
-        detector_model=None if detector_model is None else str(detector_model),
-        reid_model=None if reid_model is None else str(reid_model),
-        motion=motion,
-        features=features,
-        frames=frames,
-        params=tuple(sorted((params or {}).items())),
-        video=video,
-        fill_gaps=fill_gaps,
-    )
+    if settings is None:
+        settings = Settings.make(**options)
+    elif options:
+        raise ParameterError("give settings or options, not both")
     if threads < 1:
         raise ParameterError(f"threads must be >= 1, got {threads}")
     if workers is not None and workers < 1:
@@ -255,34 +244,24 @@ def run(
 
 def add_parser(sub: Any) -> argparse.ArgumentParser:
     """Add ``batch`` to the ``densepeds`` command's subparsers."""
-    from densepeds.cli import _add_param_option
-
     p = sub.add_parser(
         "batch",
         help="track many inputs in parallel on Ray (resumable)",
-        description="Track every input (videos, image folders, MOTChallenge sequences; a folder "
-        "or a glob expands to the inputs inside) in parallel on Ray, each as `densepeds run` "
-        "would. Writes NAME.txt, NAME.json (and NAME.mp4 with --video) per input and batch.json; "
-        "a rerun skips the inputs done with the same settings. Exit status 1 if any input "
-        "failed.",
+        description=textwrap.fill(
+            "Track every input (videos, image folders, MOTChallenge sequences; a folder "
+            "or a glob expands to the inputs inside) in parallel on Ray, each as `densepeds run` "
+            "would. Writes NAME.txt, NAME.json (and NAME.mp4 with --video) per input and "
+            "batch.json; a rerun skips the inputs done with the same settings. Exit status 1 if "
+            "any input failed.",
+            79,
+        ),
+        epilog=presets_help(),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("inputs", nargs="+", metavar="INPUT", help="video, folder or glob")
     p.add_argument("--out", required=True, metavar="DIR", type=Path, help="output folder")
-    p.add_argument("--detector", choices=DETECTORS, help="detect people in the frames")
-    p.add_argument("--detector-model", metavar="PATH", help="detector ONNX model file")
-    p.add_argument("--reid-model", metavar="PATH", help="re-ID ONNX model file")
-    p.add_argument("--motion", choices=MOTIONS, default="frvo", help="motion model")
-    p.add_argument("--features", choices=FEATURES, help="appearance features (as for run)")
-    p.add_argument("--frames", metavar="A:B", help="frame range of every input (1-based)")
-    _add_param_option(p)
+    add_run_options(p, shared_only=True)
     p.add_argument("--video", action="store_true", help="also write NAME.mp4 (annotated)")
-    p.add_argument(
-        "--fill-gaps",
-        type=int,
-        default=0,
-        metavar="N",
-        help="interpolate each track's gaps of up to N frames between detections (as for run)",
-    )
     p.add_argument(
         "--workers",
         type=int,
@@ -303,19 +282,8 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
 
 def cmd_batch(args: argparse.Namespace) -> int:
     """``densepeds batch``: exit 0 when every input is done, 1 when any failed."""
-    options: dict[str, Any] = {
-        "detector": args.detector,
-        "detector_model": args.detector_model,
-        "reid_model": args.reid_model,
-        "motion": args.motion,
-        "features": args.features,
-        "frames": args.frames,
-        "params": dict(args.param),
-        "video": args.video,
-        "fill_gaps": args.fill_gaps,
-    }
+    settings = Settings.from_args(args)
     if args.dry_run:
-        settings = Settings(**{**options, "params": tuple(sorted(options["params"].items()))})
         prep = prepare(args.inputs, args.out, settings)
         print(format_plan(prep.items))
         return 0
@@ -323,11 +291,11 @@ def cmd_batch(args: argparse.Namespace) -> int:
     result = run(
         args.inputs,
         args.out,
+        settings,
         workers=args.workers,
         threads=args.threads,
         address=args.address,
         progress=progress,
-        **options,
     )
     print(result.table())
     return EXIT_FAILED if result.failed else 0

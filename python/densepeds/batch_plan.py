@@ -17,12 +17,13 @@ import os
 import re
 import tempfile
 from collections.abc import Iterable, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
 from densepeds.errors import InputError, ParameterError
 from densepeds.pipeline import DETECTORS, FEATURES, MOTIONS
+from densepeds.runner.spec import RunOptions, params_tuple
 from densepeds.video import IMAGE_EXTS, VIDEO_EXTS, parse_frame_range
 
 RECORD_VERSION = 1
@@ -30,23 +31,31 @@ SUMMARY_FILE = "batch.json"
 _GLOB_CHARS = re.compile(r"[*?\[]")
 
 
-@dataclass(frozen=True)
-class Settings:
-    """The ``densepeds run`` options every input of a batch is tracked with (see ``run --help``).
-
-    ``params``: tracker parameters (``--param KEY=VALUE``); ``video``: also write an annotated
-    ``NAME.mp4`` per input; ``fill_gaps``: ``run --fill-gaps`` (0: off).
+@dataclass(frozen=True, kw_only=True)
+class Settings(RunOptions):
+    """The ``densepeds run`` options every input of a batch is tracked with (see ``run --help``
+    and densepeds.runner.RunOptions), and ``video``: also write an annotated ``NAME.mp4`` per
+    input.
     """
 
-    detector: str | None = None
-    detector_model: str | None = None
-    reid_model: str | None = None
-    motion: str = "frvo"
-    features: str | None = None
-    frames: str | None = None
-    params: tuple[tuple[str, Any], ...] = ()
     video: bool = False
-    fill_gaps: int = 0
+
+    @classmethod
+    def make(cls, **options: Any) -> Settings:
+        """Settings from keywords: the field names, ``params`` any mapping (or pairs) of tracker
+        parameters, model paths as str or path; an unknown name is a ParameterError."""
+        names = {f.name for f in fields(cls)}
+        unknown = sorted(set(options) - names)
+        if unknown:
+            raise ParameterError(
+                f"unknown batch option(s) {', '.join(unknown)}; expected some of "
+                f"{', '.join(sorted(names))}"
+            )
+        for key in ("detector_model", "reid_model"):
+            if options.get(key) is not None:
+                options[key] = str(options[key])
+        options["params"] = params_tuple(options.get("params"))
+        return cls(**options)
 
     def check(self) -> None:
         """Raise ParameterError for a value ``run`` would refuse (before any input is opened)."""
@@ -60,9 +69,20 @@ class Settings:
             raise ParameterError(f"motion {self.motion!r}: expected one of {MOTIONS}")
         if self.fill_gaps < 0:
             raise ParameterError(f"fill_gaps must be >= 0 frames, got {self.fill_gaps}")
+        if self.reid_reuse and self.features == "none":
+            raise ParameterError(
+                "reid_reuse keeps re-ID embeddings, and these settings compute none (features none)"
+            )
         parse_frame_range(self.frames)
-        # Builds the tracker only (models load lazily): rejects unknown or bad tracker values.
-        Pipeline(self.detector, motion=self.motion, features="none", **dict(self.params))
+        # Builds the tracker only (models load lazily): rejects an unknown preset and unknown or
+        # bad tracker values.
+        Pipeline(
+            self.detector,
+            motion=self.motion,
+            features="none",
+            preset=self.preset,
+            **dict(self.params),
+        )
 
     def digest(self, model_digests: dict[str, str]) -> str:
         """A hash of everything that decides the outputs: the options, the model files' contents

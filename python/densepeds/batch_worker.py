@@ -1,8 +1,8 @@
 """One batch job, as a worker runs it: ``densepeds run``'s own code on one input, with models
 that reach each node once and stay loaded in the worker for its next inputs.
 
-The job builds the ``run`` command's options for its input and calls the same functions as
-``densepeds run`` (``cli.open_run`` then ``cli._track_source``), so its tracks are those of
+The job builds the run of its input (a densepeds.runner.RunSpec) and calls the same functions as
+``densepeds run`` (``runner.open_run`` then ``runner.track_source``), so its tracks are those of
 ``densepeds run INPUT --out NAME.txt`` with the same options. Only the thread counts differ:
 onnxruntime, OpenCV and the motion step use the worker's CPU share, which leaves the results
 unchanged.
@@ -23,6 +23,7 @@ from typing import Any
 from densepeds.batch_plan import Job, JobRecord, Settings, new_record, write_record
 from densepeds.batch_plan import remove_partial_outputs as _remove_partial_outputs
 from densepeds.errors import DensePedsError
+from densepeds.runner import RunSpec, one_line, open_run, track_source
 
 DETECTOR_ROLE = "detector"
 REID_ROLE = "reid"
@@ -62,7 +63,7 @@ def node_cache_dir() -> Path:
 
 
 class WorkerModels:
-    """The ``models`` argument of ``cli.open_run``: loads each model once per worker process,
+    """The ``models`` argument of ``runner.open_run``: loads each model once per worker process,
     with ``threads`` onnxruntime threads, from the node's copy of the driver's file."""
 
     def __init__(self, shipped: dict[str, ShippedModel], threads: int | None) -> None:
@@ -100,46 +101,40 @@ class WorkerModels:
             self.load_seconds += time.perf_counter() - start
         return _LOADED[key]
 
-    def detector(self, kind: str, given: str | None) -> Any:
+    def detector(self, kind: str, given: str | None, **options: Any) -> Any:
         from densepeds.detect import make_detector
 
         path = self._file(DETECTOR_ROLE, given)
         return self._load(
-            (DETECTOR_ROLE, kind, path, self.threads),
-            lambda: make_detector(kind, path, threads=self.threads),
+            (DETECTOR_ROLE, kind, path, self.threads, *sorted(options.items())),
+            lambda: make_detector(kind, path, threads=self.threads, **options),
         )
 
-    def reid(self, given: str | None) -> Any:
+    def reid(self, given: str | None, reuse: bool = False) -> Any:
         from densepeds.reid import ReID
 
         path = self._file(REID_ROLE, given)
         model = self._load(
-            (REID_ROLE, path, self.threads), lambda: ReID(path, threads=self.threads)
+            (REID_ROLE, path, self.threads, reuse),
+            lambda: ReID(path, threads=self.threads, reuse=reuse),
         )
         model.reset()  # nothing carries over from the previous input
         return model
 
 
-def run_args(settings: Settings, job: Job, threads: int | None) -> Any:
-    """The options ``densepeds run INPUT`` gets for this job (parsed by the run command's own
-    parser, so every default is the command's)."""
-    from densepeds.cli import build_parser
-
-    args = build_parser().parse_args(["run", str(job.input)])
-    args.detector = settings.detector
-    args.detector_model = settings.detector_model
-    args.reid_model = settings.reid_model
-    args.motion = settings.motion
-    args.features = settings.features
-    args.frames = settings.frames
-    args.param = list(settings.params)
+def run_args(settings: Settings, job: Job, threads: int | None) -> RunSpec:
+    """The run ``densepeds run INPUT`` makes of this job's input with the batch's settings."""
+    params = list(settings.params)
     if threads is not None and "threads" not in dict(settings.params):
-        args.param.append(("threads", threads))  # the motion step's threads: same results
-    args.out = job.tracks
-    args.video = job.video_file
-    args.fill_gaps = settings.fill_gaps
-    args.quiet = True
-    return args
+        params.append(("threads", threads))  # the motion step's threads: same results
+    return RunSpec.for_input(
+        settings,
+        job.input,
+        params=tuple(params),
+        out=job.tracks,
+        video=job.video_file,
+        quiet=True,
+    )
 
 
 def run_job(
@@ -151,8 +146,6 @@ def run_job(
 ) -> JobRecord:
     """Track one input into its outputs and write its record; a bad input gives a ``failed``
     record with the one-line error (never an exception)."""
-    from densepeds.cli import _one_line, _track_source, open_run
-
     start = time.perf_counter()
     cpu_start = _cpu_seconds()
     record = new_record(job, settings_hash, "running")
@@ -167,18 +160,18 @@ def run_job(
         cv2.setNumThreads(threads)
     models = WorkerModels(shipped, threads)
     try:
-        args = run_args(settings, job, threads)
-        src, pipe, dets, out, rng = open_run(args, models)
+        spec = run_args(settings, job, threads)
+        src, pipe, dets, out, rng = open_run(spec, models)
         record.open_seconds = time.perf_counter() - start
-        record.frames, record.tracks = _track_source(args, pipe, src, out, dets, rng)
+        record.frames, record.tracks = track_source(spec, pipe, src, out, dets, rng)
         record.fps = pipe.times.fps
         record.status = "done"
         record.tracks_file = job.tracks.name
         record.video_file = job.video_file.name if job.video_file is not None else None
     except DensePedsError as err:
-        record.status, record.error = "failed", _one_line(err)
+        record.status, record.error = "failed", one_line(err)
     except Exception as err:  # a bug or an unexpected library error: this input fails alone
-        record.status, record.error = "failed", f"{type(err).__name__}: {_one_line(err)}"
+        record.status, record.error = "failed", f"{type(err).__name__}: {one_line(err)}"
     record.load_seconds = models.load_seconds
     record.fetched_models = models.fetched
     record.seconds = time.perf_counter() - start
