@@ -35,6 +35,7 @@ import argparse
 import fnmatch
 import json
 import os
+import subprocess
 import sys
 import tempfile
 import time
@@ -208,7 +209,7 @@ def load_grid(
     return [load_cell(c, cache, kinds, quiet) for c in cells]
 
 
-def _pipeline(data: CellData, config: Config, tracker: Any = None) -> Any:
+def cell_pipeline(data: CellData, config: Config, tracker: Any = None) -> Any:
     from densepeds.pipeline import DETECTION_OPTIONS, Pipeline
 
     detector = "yoloseg" if data.cell.full_pipeline else None
@@ -227,10 +228,10 @@ def track_cell(data: CellData, config: Config) -> Rows:
     """Run one configuration on one cell; rows as in ``Rows``."""
     kind = config.kind() if data.cell.full_pipeline else "none"
     if config.tracker == "densepeds":
-        pipe = _pipeline(data, config)
+        pipe = cell_pipeline(data, config)
     else:
         name, fps = config.tracker, data.fps
-        pipe = _pipeline(
+        pipe = cell_pipeline(
             data, config, tracker=peers.PipelineTracker(lambda: peers.make_tracker(name, fps))
         )
     pipe.set_image_size(*data.size)
@@ -289,15 +290,17 @@ def mean_metric(result: Mapping[str, Mapping[str, float]], metric: str = "HOTA")
     return float(np.mean([m[metric] for m in result.values()]))
 
 
-def _fmt(metric: str, v: float) -> str:
+def fmt_metric(metric: str, v: float) -> str:
     return f"{v:.0f}" if metric in ("IDSW", "FP", "FN", "MT", "ML", "IDs") else f"{v:.2f}"
 
 
 def cell_table(result: Mapping[str, Mapping[str, float]], shown: Sequence[str] = SHOWN) -> str:
     lines = ["| cell | " + " | ".join(shown) + " |", "|---|" + "---:|" * len(shown)]
     for name, m in result.items():
-        lines.append(f"| {name} | " + " | ".join(_fmt(k, m[k]) for k in shown) + " |")
-    means = " | ".join(_fmt(k, float(np.mean([m[k] for m in result.values()]))) for k in shown)
+        lines.append(f"| {name} | " + " | ".join(fmt_metric(k, m[k]) for k in shown) + " |")
+    means = " | ".join(
+        fmt_metric(k, float(np.mean([m[k] for m in result.values()]))) for k in shown
+    )
     lines.append(f"| mean of {len(result)} cells | {means} |")
     return "\n".join(lines) + "\n"
 
@@ -456,15 +459,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(text)
         return 0
     if args.write:
-        import accuracy_tables
-
-        return accuracy_tables.write_all(
-            args.cache,
-            quiet=args.quiet,
-            out=args.results or accuracy_tables.RESULTS,
-            cells=select_cells(args.cells),
-            tables=args.tables or accuracy_tables.TABLES,
-        )
+        # accuracy_tables.py builds the tables from this module's grid: its own command.
+        command = [sys.executable, str(Path(__file__).with_name("accuracy_tables.py"))]
+        command += ["--cache", str(args.cache), *(["--quiet"] if args.quiet else [])]
+        command += ["--results", str(args.results)] if args.results else []
+        command += ["--cells", *args.cells] if args.cells else []
+        command += ["--tables", *args.tables] if args.tables else []
+        return subprocess.call(command)
     config = Config(
         motion=args.motion,
         features=args.features,

@@ -2,6 +2,9 @@
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/accuracy_grid.py --write
 
+(which runs this script: ``python benchmarks/accuracy_tables.py [--cache DIR] [--results DIR]
+[--cells GLOB...] [--tables NAME...] [--quiet]``)
+
 - ``accuracy.md``: the package defaults on every cell beside every peer on the same inputs;
 - ``accuracy-loo.md``: defaults chosen leave-one-out from a small stated candidate set;
 - ``accuracy-visibility.md``: recall per ground-truth visibility bin (MOT20-01-dev), detector
@@ -16,6 +19,7 @@ Figures are computed on every run; nothing here holds a result.
 
 from __future__ import annotations
 
+import argparse
 import platform
 import sys
 import time
@@ -194,7 +198,7 @@ def _header(title: str, what: str) -> list[str]:
     ]
 
 
-def _write(out: Path, name: str, lines: Sequence[str]) -> None:
+def write_table(out: Path, name: str, lines: Sequence[str]) -> None:
     out.mkdir(parents=True, exist_ok=True)
     path = out / name
     tmp = path.with_suffix(".md.tmp")
@@ -340,7 +344,7 @@ def loo_table(results: Mapping[str, Results], skipped: Sequence[str]) -> list[st
 # --- recall per visibility bin ---
 
 
-def _matches(
+def match_pairs(
     a: npt.NDArray[np.float64], b: npt.NDArray[np.float64], thr: float = 0.5
 ) -> list[tuple[int, int]]:
     """Pairs (i, j) of the one-to-one matching of boxes a to b at IoU >= thr (densepeds.boxes)."""
@@ -388,11 +392,11 @@ def visibility_recall(
             "tracker": out[:, 2:6],
         }
         for name, det in sources.items():
-            for i, _ in _matches(boxes, det):
+            for i, _ in match_pairs(boxes, det):
                 found[name][bins[i]] += 1
         hit = np.zeros(len(out), bool)
         all_gt = np.c_[scored[:, 2:4], scored[:, 2:4] + scored[:, 4:6]]
-        for _, j in _matches(all_gt, out[:, 2:6]):
+        for _, j in match_pairs(all_gt, out[:, 2:6]):
             hit[j] = True
         coast = out[:, 7] == 0
         coasting += int(coast.sum())
@@ -415,7 +419,7 @@ def visibility_recall(
 
 def fed_boxes(data: grid.CellData, config: grid.Config) -> list[npt.NDArray[np.float64]]:
     """The boxes the pipeline hands its tracker on each frame of a video cell."""
-    pipe = grid._pipeline(data, config)
+    pipe = grid.cell_pipeline(data, config)
     return [d.boxes[pipe._kept(d)].astype(np.float64) for d in data.dets]
 
 
@@ -834,7 +838,7 @@ def write_all(
 
     if "peers" in tables:
         peer_results = _peer_results(data, ours)
-        _write(
+        write_table(
             out,
             "accuracy.md",
             _header(
@@ -856,7 +860,7 @@ def write_all(
         for name, params in usable.items():
             if params:
                 cand_results[name] = _run(data, replace(ours, params=params))
-        _write(
+        write_table(
             out,
             "accuracy-loo.md",
             _header(
@@ -882,7 +886,7 @@ def write_all(
             peer_rows: dict[str, grid.Rows] = {}
             grid.score_grid([d], replace(ours, tracker=best), peer_rows)
             found[f"{cell} :: {best}"] = visibility_recall(d, fed, peer_rows[cell])
-        _write(
+        write_table(
             out,
             "accuracy-visibility.md",
             _header(
@@ -920,7 +924,7 @@ def write_all(
             )
             base = _run(videos, replace(ours, features=f))
             features[f] = Side(base, band)
-        _write(
+        write_table(
             out,
             "accuracy-claims.md",
             _header(
@@ -934,7 +938,7 @@ def write_all(
         )
 
     if "scene" in tables:
-        _write(
+        write_table(
             out,
             "accuracy-scene.md",
             ["# The masking ablation on the built-in scene, exact and noisy masks", ""]
@@ -945,3 +949,25 @@ def write_all(
         realvideo.main(["--cache", str(cache), "--quiet", "--write", str(out / "realvideo.md")])
     _log(f"tables {', '.join(tables)} in {time.perf_counter() - t0:.0f} s")
     return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``accuracy_grid.py --write``: every table, or ``--tables`` of them."""
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--cache", type=Path, default=grid.REPO / "out" / "cache")
+    ap.add_argument("--results", type=Path, help="write here instead (a quick look)")
+    ap.add_argument("--cells", nargs="+", help="glob patterns over SEQ/SOURCE (default: all)")
+    ap.add_argument("--tables", nargs="+", help=f"only these ({' '.join(TABLES)})")
+    ap.add_argument("--quiet", "-q", action="store_true")
+    args = ap.parse_args(argv)
+    return write_all(
+        args.cache,
+        quiet=args.quiet,
+        out=args.results or RESULTS,
+        cells=grid.select_cells(args.cells),
+        tables=args.tables or TABLES,
+    )
+
+
+if __name__ == "__main__":
+    sys.exit(main())

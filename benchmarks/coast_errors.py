@@ -29,7 +29,7 @@ import numpy.typing as npt
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import accuracy_grid as grid  # noqa: E402
-from accuracy_tables import _matches  # noqa: E402
+from accuracy_tables import match_pairs  # noqa: E402
 
 Boxes = npt.NDArray[np.float64]
 LOST_BINS = ((1, 1), (2, 3), (4, 5), (6, 10), (11, 10**9))
@@ -169,7 +169,7 @@ def label_rows(
         if int(f) not in gt:
             continue
         gid, gb, _ = gt[int(f)]
-        for i, j in _matches(gb, rows[ks, 2:6]):
+        for i, j in match_pairs(gb, rows[ks, 2:6]):
             on[ks[j]] = gid[i]
     person = np.full(n, -1, np.int64)
     last: dict[int, int] = {}

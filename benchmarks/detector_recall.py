@@ -55,7 +55,7 @@ def run(seq: str, frames: str, every: int, options: dict[str, Any]) -> dict[str,
     found = np.zeros(len(BINS) - 1)
     unmatched = views = seconds = 0.0
     count = 0
-    for k, (frame_no, image) in enumerate(realvideo._frames(seq_dir, frames)):
+    for k, (frame_no, image) in enumerate(realvideo.read_frames(seq_dir, frames)):
         if k % every:
             continue
         t0 = time.perf_counter()

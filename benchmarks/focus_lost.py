@@ -81,7 +81,7 @@ def code_stamp() -> str:
 
 
 def _cache_file(cache: Path, cell: grid.Cell, scale: float, frames: str, seed: int) -> Path:
-    key = realvideo._cache_key(cell.seq, frames, cell.detector_options)
+    key = realvideo.cache_key(cell.seq, frames, cell.detector_options)
     moved = f"-j{seed}" if seed else ""
     return cache / f"focus-{cell.seq}-{cell.source}-{key}-s{scale:g}{moved}-{code_stamp()}.npz"
 
@@ -139,7 +139,7 @@ def run_cell(
     fed: list[npt.NDArray[np.float64]] = []
     views = 0
     t0 = time.perf_counter()
-    for k, (_, image) in enumerate(realvideo._frames(seq_dir, frames)):
+    for k, (_, image) in enumerate(realvideo.read_frames(seq_dir, frames)):
         tracks = pipe.step(image)
         views += detector.last_views
         raw = pipe._frame_detections
@@ -311,7 +311,7 @@ def report(
     for cell in CELLS:
         for s in scales:
             r = scored[(cell.name, s)]
-            vals = " | ".join(grid._fmt(k, r.metrics[k]) for k in SHOWN)
+            vals = " | ".join(grid.fmt_metric(k, r.metrics[k]) for k in SHOWN)
             lines.append(f"| {cell.name} | {s:g} | {vals} | {r.run.views / r.frames:.1f} |")
     results = by_scale(scored, scales)
     lines += loo_lines(results, "focus_scale=0", "scale", "no focus views", "scale 0")
@@ -410,7 +410,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     noise = None if args.no_noise else noise_all(args.cache, (0.0, default_scale()))
     lines = report(scored, scales, noise)
     if args.write:
-        tables._write(tables.RESULTS, "focus.md", lines)
+        tables.write_table(tables.RESULTS, "focus.md", lines)
     else:
         print("\n".join(lines))
     return 0

@@ -159,7 +159,7 @@ def report(cell: grid.Cell, params: dict[str, Any], cache: Path) -> None:
     for i in np.unique(rows[:, 1]):
         m = rows[:, 1] == i
         share[m] = nobody[m].mean()
-    p = dict(grid._pipeline(data, config).params)
+    p = dict(grid.cell_pipeline(data, config).params)
     print(
         f"\n## {cell.name}: {len(rows)} rows, {int(np.sum(~nobody))} on a scored person, "
         f"{int(nobody.sum())} on nobody (det_threshold {p['det_threshold']}, "

@@ -104,7 +104,7 @@ def report(
     for name in names:
         for k in periods:
             m, run = scored[(name, k)]
-            vals = " | ".join(grid._fmt(key, m[key]) for key in SHOWN)
+            vals = " | ".join(grid.fmt_metric(key, m[key]) for key in SHOWN)
             frames = len(run.detected)
             lines.append(f"| {name} | {k} | {vals} | {run.views / frames:.1f} |")
     results = {f"full_scan_every={k}": {n: scored[(n, k)][0] for n in names} for k in periods}
@@ -173,7 +173,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                         noise[(name, k, seed)] = score(cell, args.cache, Path(tmp), seed)[0]["HOTA"]
     lines = report(scored, periods, noise)
     if args.write:
-        tables._write(tables.RESULTS, "full-scan.md", lines)
+        tables.write_table(tables.RESULTS, "full-scan.md", lines)
     else:
         print("\n".join(lines))
     return 0

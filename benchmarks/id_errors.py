@@ -86,7 +86,7 @@ def run_rows(data: grid.CellData, params: dict[str, Any]) -> npt.NDArray[np.floa
     tracks a cell."""
     config = grid.Config(params=params)
     kind = config.kind() if data.cell.full_pipeline else "none"
-    pipe = grid._pipeline(data, config)
+    pipe = grid.cell_pipeline(data, config)
     pipe.set_image_size(*data.size)
     out = []
     for k, dets in enumerate(data.dets):
@@ -407,7 +407,7 @@ def report(cell: grid.Cell, params: dict[str, Any], cache: Path, hits: int) -> N
         sys.exit(f"{cell.name}: reporting every track changed the associations")
     kind = grid.Config(params=params).kind()
     emb = data.embeddings.get(kind) if data.cell.full_pipeline else None
-    p = dict(grid._pipeline(data, grid.Config(params=params)).params)
+    p = dict(grid.cell_pipeline(data, grid.Config(params=params)).params)
     people = label(rows, gt)
     tracks = tracks_of(every, label(every, gt))
     events = events_of(rows, people, tracks)

@@ -211,7 +211,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.exit("no video cell (with masks) among the cells named")
     for cell in cells:
         data = grid.load_cell(cell, args.cache, kinds=(), quiet=True)
-        pipe = grid._pipeline(data, grid.Config(features="none"))
+        pipe = grid.cell_pipeline(data, grid.Config(features="none"))
         dets = [d.subset(pipe._kept(d)) for d in data.dets]
         report(cell.name, dets, load_gt(data.seq_dir), args.min_iou)
     return 0

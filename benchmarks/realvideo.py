@@ -123,7 +123,7 @@ def cached_settings(detector_options: dict[str, Any]) -> dict[str, Any]:
     return {**detector_settings(detector_options), "focus_scale": 0.0}
 
 
-def _cache_key(seq: str, frames: str, detector_options: dict[str, Any]) -> str:
+def cache_key(seq: str, frames: str, detector_options: dict[str, Any]) -> str:
     import inspect
 
     from densepeds.detect import anchor_grid, tiling
@@ -236,7 +236,7 @@ def kind_options(kind: str) -> tuple[str, dict[str, Any]]:
     return features, options
 
 
-def _frames(seq_dir: Path, frames: str) -> Iterator[tuple[int, npt.NDArray[np.uint8]]]:
+def read_frames(seq_dir: Path, frames: str) -> Iterator[tuple[int, npt.NDArray[np.uint8]]]:
     from densepeds.video import SequenceSource, parse_frame_range
 
     src = SequenceSource(seq_dir)
@@ -261,14 +261,14 @@ def load_video(
     if not seq_dir.is_dir():
         sys.exit(f"{seq_dir}: missing (the shared data beside the repo; set DENSEPEDS_SHARED)")
     cache.mkdir(parents=True, exist_ok=True)
-    key = _cache_key(seq, frames, detector_options)
+    key = cache_key(seq, frames, detector_options)
     det_file = cache / f"{seq}-{key}-dets.npz"
     alone = {**detector_options, "focus_scale": 0.0}  # as cached_settings
     helper = Pipeline("yoloseg", detector_options=alone, features="none")
     if not det_file.is_file():
         t0 = time.perf_counter()
         det = helper.detector()
-        dets = [det(image) for _, image in _frames(seq_dir, frames)]
+        dets = [det(image) for _, image in read_frames(seq_dir, frames)]
         _save_dets(det_file, dets)
         if not quiet:
             print(
@@ -288,7 +288,7 @@ def load_video(
             reid = helper.reid() if not options else ReID(**options)
             rows = [
                 reid.embed(image, d, features=features)
-                for (_, image), d in zip(_frames(seq_dir, frames), dets, strict=True)
+                for (_, image), d in zip(read_frames(seq_dir, frames), dets, strict=True)
             ]
             tmp = emb_file.with_suffix(".tmp.npz")
             np.savez(tmp, emb=np.concatenate(rows), counts=[len(r) for r in rows])

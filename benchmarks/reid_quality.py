@@ -203,7 +203,7 @@ def embed_cost(
         features, options = realvideo.kind_options(kind)
         models[kind] = (features, ReID(**options))
     spent = dict.fromkeys(kinds, 0.0)
-    for k, (_, image) in enumerate(realvideo._frames(video.seq_dir, frames)):
+    for k, (_, image) in enumerate(realvideo.read_frames(video.seq_dir, frames)):
         if k >= count:
             break
         for kind, (features, reid) in models.items():

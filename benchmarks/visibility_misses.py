@@ -126,7 +126,7 @@ def cell_frames(data: grid.CellData, config: grid.Config) -> tuple[list[Frame], 
     from densepeds.motio import read_gt
 
     gt = read_gt(data.seq_dir / "gt" / "gt.txt")
-    pipe = grid._pipeline(data, config)
+    pipe = grid.cell_pipeline(data, config)
     kind = config.kind() if data.cell.full_pipeline else None
     frames = []
     for k, dets in enumerate(data.dets, 1):

@@ -76,7 +76,7 @@ def test_matches_are_an_optimal_one_to_one_assignment() -> None:
         a = rng.uniform(0, 50, (4, 2))
         a = np.c_[a, a + rng.uniform(5, 20, (4, 2))]
         b = a[rng.permutation(4)[:3]] + np.tile(rng.normal(0, 4, (3, 2)), 2)
-        got = tables._matches(a, b)
+        got = tables.match_pairs(a, b)
         assert len({i for i, _ in got}) == len(got) == len({j for _, j in got})
         assert all(peers.iou_matrix(a[[i]], b[[j]])[0, 0] >= 0.5 for i, j in got)
         # Brute force: the largest number of pairs with IoU >= 0.5 over all assignments.

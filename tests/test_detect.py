@@ -919,7 +919,7 @@ def test_a_skipping_grid_has_a_cache_key_of_its_own() -> None:
     import realvideo
 
     shared_path("models", YOLO)
-    key = realvideo._cache_key
+    key = realvideo.cache_key
     plain = key("PETS09-S2L1-dev", "1:397", {"tiles": "2x2", "quantized": False})
     same = {"tiles": "2x2", "quantized": False, "full_scan_every": 1}
     assert key("PETS09-S2L1-dev", "1:397", same) == plain

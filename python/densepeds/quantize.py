@@ -37,6 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from densepeds.boxes import iou_matrix
+from densepeds.detect.onnxutil import META_SOURCE
 from densepeds.errors import ModelError, ParameterError
 from densepeds.video import FrameRange, open_source, parse_frame_range
 
@@ -50,7 +51,6 @@ if TYPE_CHECKING:
 # CPU flags (Linux /proc/cpuinfo) of the integer dot-product instructions that onnxruntime's
 # U8S8 kernels are made for: x86 AVX-512 VNNI and AVX-VNNI, ARM's dot product.
 DOT_PRODUCT_FLAGS = ("avx512_vnni", "avx_vnni", "asimddp")
-META_SOURCE = "densepeds.quantized_from_sha256"
 META_CALIBRATION = "densepeds.calibration"
 META_FORMAT = "densepeds.quant_format"
 META_ORT = "densepeds.onnxruntime"
@@ -79,11 +79,6 @@ def integer_dot_product(cpuinfo: str | None = None) -> bool | None:
     if not flags:
         return None
     return any(f in flags for f in DOT_PRODUCT_FLAGS)
-
-
-def is_quantized_copy(path: Path) -> bool:
-    """Whether ``path`` is a file written by :func:`quantize_detector`."""
-    return META_SOURCE in metadata(path)
 
 
 def float_copy(path: Path) -> onnx.ModelProto:

@@ -7,9 +7,45 @@
 //! A value outside its range is rejected with [`TrackError::InvalidParameter`]; every value
 //! inside it is used as given (nothing is clamped or replaced further down).
 
-use crate::score_scale::{ScoreScale, SCORE_SCALE_NAMES};
 use crate::TrackError;
 use frvo::{MotionKind, MotionParams};
+
+/// How score thresholds are read (see [`crate::score_scale`], which reads them).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ScoreScale {
+    Absolute,
+    Range,
+    Rank,
+}
+
+/// The names a score scale is chosen by, in [`ScoreScale`]'s order.
+pub const SCORE_SCALE_NAMES: &[&str] = &["absolute", "range", "rank"];
+
+impl ScoreScale {
+    /// The name this scale is chosen by (one of [`SCORE_SCALE_NAMES`]).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Absolute => "absolute",
+            Self::Range => "range",
+            Self::Rank => "rank",
+        }
+    }
+}
+
+impl std::str::FromStr for ScoreScale {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "absolute" => Ok(Self::Absolute),
+            "range" => Ok(Self::Range),
+            "rank" => Ok(Self::Rank),
+            _ => Err(format!(
+                "unknown score scale {s:?}; known: {}",
+                SCORE_SCALE_NAMES.join(", ")
+            )),
+        }
+    }
+}
 
 /// How a parameter's value is typed (for bindings).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

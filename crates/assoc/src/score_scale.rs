@@ -30,45 +30,8 @@
 //! compares the raw scores with the converted cuts (a score passes a cut when `score >= cut`).
 
 use crate::params::TrackerParams;
+pub use crate::params::{ScoreScale, SCORE_SCALE_NAMES};
 use std::collections::VecDeque;
-use std::str::FromStr;
-
-/// How score thresholds are read (see the module doc).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ScoreScale {
-    Absolute,
-    Range,
-    Rank,
-}
-
-/// The names a score scale is chosen by, in [`ScoreScale`]'s order.
-pub const SCORE_SCALE_NAMES: &[&str] = &["absolute", "range", "rank"];
-
-impl ScoreScale {
-    /// The name this scale is chosen by (one of [`SCORE_SCALE_NAMES`]).
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Absolute => "absolute",
-            Self::Range => "range",
-            Self::Rank => "rank",
-        }
-    }
-}
-
-impl FromStr for ScoreScale {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "absolute" => Ok(Self::Absolute),
-            "range" => Ok(Self::Range),
-            "rank" => Ok(Self::Rank),
-            _ => Err(format!(
-                "unknown score scale {s:?}; known: {}",
-                SCORE_SCALE_NAMES.join(", ")
-            )),
-        }
-    }
-}
 
 /// The scores seen so far: their count, lowest and highest, and the last `window` of them.
 #[derive(Clone, Debug)]

@@ -18,5 +18,5 @@ pub mod neighbors;
 pub mod velocity_obstacle;
 
 pub use agent::Agent;
-pub use model::{make_model, ConstantVelocity, MotionKind, MotionModel, MotionParams};
-pub use models::{Footprint, Orca, SocialForce};
+pub use model::{ConstantVelocity, MotionKind, MotionModel, MotionParams};
+pub use models::{make_model, Footprint, Orca, SocialForce};

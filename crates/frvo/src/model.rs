@@ -1,5 +1,4 @@
 use crate::geometry::MAX_SIDES;
-use crate::models::{Footprint, Orca, SocialForce};
 use crate::Agent;
 use nalgebra::Vector2;
 
@@ -201,16 +200,5 @@ impl MotionModel for ConstantVelocity {
                 }
             })
             .collect()
-    }
-}
-
-/// Builds the model of the given kind. Invalid parameters are sanitised (see
-/// [`MotionParams::sanitized`]); call [`MotionParams::validate`] first to report them instead.
-pub fn make_model(kind: MotionKind, params: MotionParams) -> Box<dyn MotionModel> {
-    match kind {
-        MotionKind::Frvo => Box::new(Orca::new(params, Footprint::Ellipse)),
-        MotionKind::Rvo => Box::new(Orca::new(params, Footprint::Circle)),
-        MotionKind::SocialForce => Box::new(SocialForce::new(params)),
-        MotionKind::ConstantVelocity => Box::new(ConstantVelocity),
     }
 }

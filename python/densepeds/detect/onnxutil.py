@@ -369,6 +369,15 @@ def model_metadata(path: Path) -> dict[str, str]:
         raise ModelError(f"{path} is not a readable ONNX model: {exc}") from exc
 
 
+# The metadata key an int8 copy made by densepeds.quantize records its source model's sha256 in.
+META_SOURCE = "densepeds.quantized_from_sha256"
+
+
+def is_quantized_copy(path: Path) -> bool:
+    """Whether ``path`` is a file written by densepeds.quantize.quantize_detector."""
+    return META_SOURCE in model_metadata(path)
+
+
 def _fields(data: memoryview) -> Iterator[tuple[int, int | memoryview]]:
     """(field number, varint or length-delimited bytes) of one protobuf message's fields."""
     pos, end = 0, len(data)

@@ -22,6 +22,7 @@ import numpy.typing as npt
 import onnxruntime as ort
 
 from densepeds.detect import anchor_grid, onnxutil, split_batch
+from densepeds.detect.onnxutil import META_SOURCE, is_quantized_copy
 from densepeds.detect.tiling import (
     PeopleTiles,
     SkipSchedule,
@@ -35,7 +36,6 @@ from densepeds.detect.tiling import (
 from densepeds.errors import ModelError, ParameterError
 from densepeds.frames import check_frame
 from densepeds.modelfiles import quantized_file_name
-from densepeds.quantize import META_SOURCE, is_quantized_copy, metadata
 from densepeds.types import Detections
 
 LETTERBOX_GREY = 114
@@ -559,7 +559,7 @@ def choose_model(model: Path, quantized: bool | None) -> Path:
                 "one with `densepeds models quantize --calibrate VIDEO`"
             )
         return model
-    recorded = metadata(found).get(META_SOURCE)
+    recorded = onnxutil.model_metadata(found).get(META_SOURCE)
     if recorded != sha256_of(model):
         raise ModelError(
             f"{found} was not made from {model} (sha256 differs); remake it with "
