@@ -3,9 +3,12 @@ lines parse, the one-command scripts exist, and every figure matches its results
 
 from __future__ import annotations
 
+import argparse
+import io
 import os
 import re
 import sys
+from contextlib import redirect_stdout
 from pathlib import Path
 
 import pytest
@@ -103,3 +106,34 @@ def test_no_typed_figures_outside_generated_blocks() -> None:
     ratios; versions such as 3.10+ are not results)."""
     text = gen_docs.BLOCK.sub("", README.read_text(encoding="utf-8"))
     assert not re.findall(r"\b\d+\.\d\d\b(?!\+)|\b\d+(?:\.\d+)?x\b", text)
+
+
+def _run_help_actions() -> list[argparse.Action]:
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return [a for a in sub.choices["run"]._actions if a.dest != "help"]
+
+
+def test_run_help_shows_every_default_in_groups() -> None:
+    """`run --help`: every option says its default, and sits in a named group."""
+    actions = _run_help_actions()
+    assert len(actions) > 15
+    for action in actions:
+        assert action.help and "default" in action.help, action.dest
+    out = io.StringIO()
+    with redirect_stdout(out), pytest.raises(SystemExit):
+        build_parser().parse_args(["run", "--help"])
+    for title in ("input:", "detection:", "appearance (re-ID):", "tracking:", "output:"):
+        assert f"\n{title}\n" in out.getvalue(), title
+    assert "examples:" in out.getvalue()
+
+
+def test_run_help_focus_default_is_the_detectors() -> None:
+    """The default `--focus-lost` names is YoloSegDetector's own focus_scale."""
+    import inspect
+
+    from densepeds.detect.yoloseg import YoloSegDetector
+
+    (focus,) = (a for a in _run_help_actions() if a.dest == "focus_lost")
+    default = inspect.signature(YoloSegDetector).parameters["focus_scale"].default
+    assert f"default {default:g} " in str(focus.help)

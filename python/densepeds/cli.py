@@ -28,7 +28,7 @@ FORMATS = ("md", "csv", "json")
 FORMAT_HELP = "output format: md (Markdown table), csv, or json (every metric, full precision)"
 PARAM_HELP = (
     "tracker parameter, e.g. max_age=30 (repeatable; the names are "
-    "densepeds.tracking.Tracker().params)"
+    "densepeds.tracking.Tracker().params); default: the preset's values"
 )
 
 
@@ -109,35 +109,59 @@ def build_parser() -> argparse.ArgumentParser:
         help="track a video, image folder or MOTChallenge sequence (no INPUT: the built-in scene)",
         description="Track people. With no INPUT, tracks the built-in dense-crowd scene and "
         "prints its metrics.",
-        epilog=_presets_help(),
+        epilog="examples:\n"
+        "  densepeds run                                   the built-in scene, tracked and scored\n"
+        "  densepeds run video.mp4 --frames 1:200 --video annotated.mp4\n"
+        "                                                  detect, segment, re-ID and track\n"
+        "  densepeds run SEQ_DIR --out tracks.txt          a MOTChallenge sequence; from its\n"
+        "                                                  det/det.txt where it has no frames\n"
+        "  densepeds run video.mp4 --tiles 3x2 --focus-lost 0 --full-scan-every 4\n"
+        "                                                  faster, fewer people found in crowds\n"
+        "  densepeds run video.mp4 --param max_age=60      one tracker parameter changed\n"
+        "  densepeds run recorded.mp4 --fill-gaps 40       offline: gaps bridged in the tracks\n"
+        "\n" + _presets_help(),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    run.add_argument(
+    inputs = run.add_argument_group("input")
+    inputs.add_argument(
         "input",
         nargs="?",
         help="video file, image folder or MOTChallenge sequence folder (seqinfo.ini, img1/ "
-        "and/or det/det.txt)",
+        "and/or det/det.txt); default: the built-in scene",
     )
-    run.add_argument(
+    inputs.add_argument(
         "--detections",
         metavar="FILE",
-        help="MOTChallenge det.txt to track from (overrides a sequence's det/det.txt)",
+        help="MOTChallenge det.txt to track from (overrides a sequence's det/det.txt); default: "
+        "the sequence's det/det.txt where it has one",
     )
-    run.add_argument(
+    inputs.add_argument(
+        "--frames",
+        metavar="A:B",
+        help="frame range, 1-based and inclusive (A:, :B and A work); default: every frame",
+    )
+    inputs.add_argument(
+        "--allow-partial",
+        action="store_true",
+        help="keep the tracks of an input that ends before its expected frame count (a truncated "
+        "video, an image folder shorter than its seqLength) instead of failing; default: fail",
+    )
+    detection = run.add_argument_group("detection")
+    detection.add_argument(
         "--detector",
         choices=DETECTORS,
         help="detect people in the frames with this CNN (default: yoloseg where there are "
         "frames and no det file)",
     )
-    run.add_argument("--detector-model", metavar="PATH", help=DETECTOR_MODEL_HELP)
-    run.add_argument(
+    detection.add_argument("--detector-model", metavar="PATH", help=DETECTOR_MODEL_HELP)
+    detection.add_argument(
         "--tiles",
         metavar="auto|CxR|none",
-        help="the CNN detector's views of a frame: auto (default) tiles that follow the people "
+        help="the CNN detector's views of a frame: auto tiles that follow the people "
         "(at most twice the fixed grid's views); CxR a fixed grid of overlapping tiles, e.g. 3x2 "
-        "(faster, fewer people found in crowds); none the whole frame in one view",
+        "(faster, fewer people found in crowds); none the whole frame in one view; default auto",
     )
-    run.add_argument(
+    detection.add_argument(
         "--full-scan-every",
         metavar="K",
         type=int,
@@ -146,39 +170,17 @@ def build_parser() -> argparse.ArgumentParser:
         "them, or the tiles that show them, whichever are fewer; faster, the tracks change); "
         "default 1: all views every frame",
     )
-    run.add_argument(
+    detection.add_argument(
         "--focus-lost",
         metavar="S",
         type=float,
         help="the yoloseg detector also looks closer at each person the tracker reports without "
         "a detection (lost behind others): one more view a frame each, of the model input's "
         "shape, its longer side S times their height (more people found in dense crowds, "
-        "slower there); 0 turns it off; default: "
-        "the detector's own (YoloSegDetector's focus_scale)",
+        "slower there); 0 turns it off; default 2.5 (YoloSegDetector's focus_scale)",
     )
-    run.add_argument("--reid-model", metavar="PATH", help=REID_MODEL_HELP)
-    run.add_argument(
-        "--reid-reuse",
-        action="store_true",
-        help="a detection that plainly continues one of the previous frame's (it alone overlaps "
-        "it, with the same colours; with nearly the same where nobody else is near) keeps that "
-        "re-ID embedding, for up to 4 frames in a row, instead of a new one "
-        "(densepeds.reid.ReusePolicy): less re-ID work, the tracks may change",
-    )
-    run.add_argument(
-        "--motion",
-        choices=MOTIONS,
-        default="frvo",
-        help="motion model: frvo (the method), rvo, sf (social forces), cv (constant "
-        "velocity); default frvo",
-    )
-    run.add_argument(
-        "--preset",
-        choices=PRESETS,
-        help="settings for the detections (listed below); default: the detector's own, "
-        f"{DEFAULT_PRESET} for det files",
-    )
-    run.add_argument(
+    appearance = run.add_argument_group("appearance (re-ID)")
+    appearance.add_argument(
         "--features",
         choices=FEATURES,
         help=f"appearance features: segmented (the method's white fill outside the mask), bbox "
@@ -186,17 +188,43 @@ def build_parser() -> argparse.ArgumentParser:
         f"masked_blur (other fills), none (motion only); default: {DEFAULT_FEATURES} where "
         f"there are frames (segmented on the built-in scene), else none",
     )
-    run.add_argument(
-        "--frames", metavar="A:B", help="frame range, 1-based and inclusive (A:, :B and A work)"
+    appearance.add_argument("--reid-model", metavar="PATH", help=REID_MODEL_HELP)
+    appearance.add_argument(
+        "--reid-reuse",
+        action="store_true",
+        help="a detection that plainly continues one of the previous frame's (it alone overlaps "
+        "it, with the same colours; with nearly the same where nobody else is near) keeps that "
+        "re-ID embedding, for up to 4 frames in a row, instead of a new one "
+        "(densepeds.reid.ReusePolicy): less re-ID work, the tracks may change; default: off",
     )
-    run.add_argument(
+    tracking = run.add_argument_group(
+        "tracking", "every tracker parameter and its default: docs/parameters.md"
+    )
+    tracking.add_argument(
+        "--motion",
+        choices=MOTIONS,
+        default="frvo",
+        help="motion model: frvo (the method), rvo, sf (social forces), cv (constant "
+        "velocity); default frvo",
+    )
+    tracking.add_argument(
+        "--preset",
+        choices=PRESETS,
+        help="settings for the detections (listed below); default: the detector's own, "
+        f"{DEFAULT_PRESET} for det files",
+    )
+    _add_param_option(tracking)  # type: ignore[arg-type]  # a group adds options as a parser
+    output = run.add_argument_group("output")
+    output.add_argument(
         "--out",
         metavar="TRACKS.txt",
         type=Path,
         help="tracks output file, MOTChallenge format (default: out/<input name>.txt)",
     )
-    run.add_argument("--video", metavar="OUT.mp4", type=Path, help="annotated video output")
-    run.add_argument(
+    output.add_argument(
+        "--video", metavar="OUT.mp4", type=Path, help="annotated video output; default: none"
+    )
+    output.add_argument(
         "--fill-gaps",
         metavar="N",
         type=int,
@@ -205,16 +233,12 @@ def build_parser() -> argparse.ArgumentParser:
         "most N frames apart (coasted boxes, or none) by the straight line between them: an "
         "offline step, in the tracks file only (--video shows the online tracks); default 0: off",
     )
-    _add_param_option(run)
-    run.add_argument("--seed", type=int, default=0, help="built-in scene: random seed")
-    run.add_argument("--scene-frames", type=int, default=150, help="built-in scene: frames")
-    run.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
-    run.add_argument(
-        "--allow-partial",
-        action="store_true",
-        help="keep the tracks of a input that ends before its expected frame count (a truncated "
-        "video, an image folder shorter than its seqLength) instead of failing",
+    output.add_argument(
+        "--quiet", "-q", action="store_true", help="no progress bar; default: a progress bar"
     )
+    scene = run.add_argument_group("the built-in scene (no INPUT)")
+    scene.add_argument("--seed", type=int, default=0, help="random seed; default 0")
+    scene.add_argument("--scene-frames", type=int, default=150, help="frames; default 150")
 
     ev = sub.add_parser(
         "eval",
