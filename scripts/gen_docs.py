@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Rewrites the figures in README.md and docs/*.md from the results files.
+"""Rewrites the figures in README.md, docs/*.md and crates/*/README.md from the results files.
 
 Every figure the README and the docs show sits in a marked block::
 
@@ -26,7 +26,11 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "benchmarks" / "results"
-FILES = (ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")))
+FILES = (
+    ROOT / "README.md",
+    *sorted((ROOT / "docs").glob("*.md")),
+    *sorted((ROOT / "crates").glob("*/README.md")),
+)
 BLOCK = re.compile(r"(<!-- generated:([\w-]+) -->\n)(.*?)(<!-- /generated -->)", re.S)
 VIDEO_CELLS = ("MOT20-01-dev/float", "PETS09-S2L1-dev/float")
 
