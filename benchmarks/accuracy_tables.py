@@ -121,7 +121,7 @@ TUNED_ON = {
     "`score_quantile_floor`, `max_age`, `output_lost_adaptive`, `position_smoothing`, "
     "`jitter_floor`, `coast_aspect` and `motion_person_height` on all 15 cells by leave-one-out, "
     "the `/frcnn` and `/int8` ones included; `score_quantile_ceiling` by the same leave-one-out "
-    "and by the 11 motion-only cells under the score maps of `score-maps.md`; "
+    "and by the 11 motion-only cells under monotone score maps (`decisions.md`); "
     "`thresholded_low_iou`, `tentative_max_age`, `coast_min_hits` and `left_image_inside` by the "
     "same leave-one-out)",
     "cnn": "the two `/float` videos together (the score reading as above; "
@@ -184,7 +184,7 @@ def _header(title: str, what: str) -> list[str]:
         "scored by `densepeds.evaluate` (trackeval, MOTChallenge rules). The cached detections "
         "are the detector's alone: the package's closer look at the people the tracker lost "
         "(`YoloSegDetector(focus_scale)`, on by default) needs a live run, and is measured on "
-        "the four video cells in `results/focus.md`.",
+        "the four video cells in `results/decisions.md`.",
         "",
         "Package defaults: on det files the tracker's own defaults, chosen on "
         f"{TUNED_ON['det']} (leave-one-out check in `results/accuracy-loo.md`): `{own}`. "

@@ -107,7 +107,7 @@ def sequential(clips: list[Path], out: Path) -> dict[str, Any]:
             check=True,
         )
         wall = time.perf_counter() - t0
-        m = re.search(r": (\d+) frames, (\d+) tracks .*; ([\d.]+) fps", proc.stdout)
+        m = re.search(r": (\d+) frames, (\d+) tracks .*; ([\d.]+) frames/s", proc.stdout)
         assert m, proc.stdout
         frames, fps = int(m.group(1)), float(m.group(3))
         rss = float(proc.stdout.rsplit("max_rss_mb", 1)[1])

@@ -11,7 +11,10 @@ Markdown (`benchmarks/results/int8.md`):
    (:func:`densepeds.quantize.check`).
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/int8_speed.py [--frames 1:60] [--every 6] \\
-        [--rounds 5] [--threads 2] [--skip-agreement]
+        [--rounds 5] [--threads 2] [--skip-agreement] [--smoke]
+
+``--smoke`` checks that the script runs (seconds, figures meaningless): the float copy and the
+default int8 copy only, calibrated on two frames.
 
 Every variant is calibrated on the frames int8.md's command uses (MOT20-01 215-429 every 8th,
 PETS09-S2L1 398-795 every 16th); variants sharing a calibration method share its ranges.
@@ -47,6 +50,7 @@ MODEL = SHARED / "models" / "yolov8n-seg-320-int8.onnx"
 MOT20 = SHARED / "data" / "MOT20-01-dev" / "MOT20-01-raw.mp4"
 PETS = SHARED / "data" / "PETS09-S2L1-dev" / "vtest.avi"
 CALIBRATION = (f"{MOT20}@215:429/8", f"{PETS}@398:795/16")
+SMOKE_CALIBRATION = (f"{MOT20}@215:215", f"{PETS}@398:398")
 LEVELS = {
     "all": ort.GraphOptimizationLevel.ORT_ENABLE_ALL,
     "extended": ort.GraphOptimizationLevel.ORT_ENABLE_EXTENDED,
@@ -100,10 +104,12 @@ def capture_batches(frames: str, every: int, threads: int) -> list[np.ndarray]:
     return out
 
 
-def make_variants(tmp: Path, threads: int) -> dict[str, Path]:
-    inputs = [quantize.parse_calibration(c) for c in CALIBRATION]
+def make_variants(
+    tmp: Path, threads: int, variants: list[Variant], calibration: tuple[str, ...]
+) -> dict[str, Path]:
+    inputs = [quantize.parse_calibration(c) for c in calibration]
     made: dict[str, Path] = {}
-    for k, v in enumerate(VARIANTS):
+    for k, v in enumerate(variants):
         if v.options is None:
             continue
         key = v.options.describe()
@@ -182,7 +188,10 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--skip-agreement", action="store_true")
+    ap.add_argument("--smoke", action="store_true", help="check that it runs (seconds)")
     args = ap.parse_args()
+    variants = VARIANTS[:2] if args.smoke else VARIANTS
+    calibration = SMOKE_CALIBRATION if args.smoke else CALIBRATION
     for path in (MODEL, MOT20, PETS):
         if not path.exists():
             raise SystemExit(f"{path}: missing (the shared data beside the repo; DENSEPEDS_SHARED)")
@@ -190,23 +199,23 @@ def main() -> None:
         tmp = Path(tmp_name)
         batches = capture_batches(args.frames, args.every, args.threads)
         with contextlib.redirect_stdout(sys.stderr):  # onnxruntime's calibration prints
-            made = make_variants(tmp, args.threads)
-        files = {v.name: made[v.options.describe()] if v.options else None for v in VARIANTS}
-        sessions = {v.name: session(files[v.name], v.level, args.threads) for v in VARIANTS}
+            made = make_variants(tmp, args.threads, variants, calibration)
+        files = {v.name: made[v.options.describe()] if v.options else None for v in variants}
+        sessions = {v.name: session(files[v.name], v.level, args.threads) for v in variants}
         for s in sessions.values():  # warm up
             s.run(None, {s.get_inputs()[0].name: batches[0]})
         before = load()
         timed = time_interleaved(sessions, batches, args.rounds)
         after = load()
-        default = files[VARIANTS[1].name]
+        default = files[variants[1].name]
         profiles = {
             "float copy": op_profile(None, batches, args.threads, tmp),
             "int8 copy": op_profile(default, batches, args.threads, tmp),
         }
-        inputs = [quantize.parse_calibration(c) for c in CALIBRATION]
+        inputs = [quantize.parse_calibration(c) for c in calibration]
         agreement = {}
         if not args.skip_agreement:
-            for v in VARIANTS[1:]:
+            for v in variants[1:]:
                 path = files[v.name]
                 if v.level == "all" and path is not None:
                     agreement[v.name] = quantize.check(MODEL, path, inputs, threads=args.threads)
@@ -218,10 +227,10 @@ def main() -> None:
         f"{onnxutil.available_cpus()} CPUs ({platform.processor() or platform.machine()}); "
         f"load average before {before}, after {after}.\n"
     )
-    ref_wall, ref_cpu = timed[VARIANTS[0].name]
+    ref_wall, ref_cpu = timed[variants[0].name]
     print("| setting | wall ms/view | CPU ms/view | float copy / this (wall) | (CPU) |")
     print("|---|---:|---:|---:|---:|")
-    for v in VARIANTS:
+    for v in variants:
         w, c = timed[v.name]
         print(f"| {v.name} | {w:.2f} | {c:.2f} | {ref_wall / w:.2f}x | {ref_cpu / c:.2f}x |")
     print(

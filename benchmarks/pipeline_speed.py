@@ -412,7 +412,7 @@ def main() -> int:
         "around each run. `reference` is `benchmarks/reference_pipeline.py` (the shipped int8 "
         "segmenter, a batch-1 call per tile, OSNet on every crop); `ours` is `densepeds run` "
         "with the package's defaults; `ours, no focus views` the same with `--focus-lost 0` (no "
-        "closer look at the people the tracker lost: `benchmarks/results/focus.md`), as every "
+        "closer look at the people the tracker lost: `benchmarks/results/decisions.md`), as every "
         "other row runs (`results/fast.md` measures their accuracy without it); `ours on the "
         "grid` is that on the reference's fixed grid of tiles "
         "(`densepeds.detect.tiling.auto_grid`), where the detector runs its input cut to the "

@@ -63,7 +63,7 @@ Notes:
   figures; `accuracy-loo.md` reports leave-one-out figures over the whole dev grid, and
   `accuracy.md` the peers on the same detections and embeddings.
 - The detections are the detector's alone, cached: the closer look at the people the tracker
-  lost (`YoloSegDetector(focus_scale)`, on by default) needs a live run; `focus.md` measures it.
+  lost (`YoloSegDetector(focus_scale)`, on by default) needs a live run (`decisions.md`).
 """
 COLUMNS = ("HOTA", "IDF1", "MOTA", "MOTP", "MT", "ML", "FP", "FN", "IDSW", "IDs")
 
@@ -119,7 +119,7 @@ def detector_settings(detector_options: dict[str, Any]) -> dict[str, Any]:
 
 def cached_settings(detector_options: dict[str, Any]) -> dict[str, Any]:
     """The settings the cached detections are made with: the detector's alone, no focus views
-    (they need a tracker's lost people, which only a live run has: benchmarks/focus_lost.py)."""
+    (they need a tracker's lost people, which only a live run has)."""
     return {**detector_settings(detector_options), "focus_scale": 0.0}
 
 

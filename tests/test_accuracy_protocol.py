@@ -136,7 +136,7 @@ def test_visibility_recall_on_the_scene(scene: Scene, tmp_path: Path) -> None:
 
 
 def test_a_det_cell_scores_the_same_through_the_pipeline_and_the_tracker(tmp_path: Path) -> None:
-    """The grid tracks through densepeds.Pipeline; compare_peers feeds densepeds.Tracker."""
+    """The grid tracks through densepeds.Pipeline; the tracker fed directly gives the same."""
     seq = shared_path("data", "TUD-Stadtmitte")
     from densepeds.evaluate import evaluate
     from densepeds.motio import read_detections, write_tracks

@@ -74,7 +74,17 @@ def build_parser() -> argparse.ArgumentParser:
         help="track a video, image folder or MOTChallenge sequence (no INPUT: the built-in scene)",
         description="Track people. With no INPUT, tracks the built-in dense-crowd scene and "
         "prints its metrics.",
-        epilog=presets_help(),
+        epilog="examples:\n"
+        "  densepeds run                                   the built-in scene, tracked and scored\n"
+        "  densepeds run video.mp4 --frames 1:200 --video annotated.mp4\n"
+        "                                                  detect, segment, re-ID and track\n"
+        "  densepeds run SEQ_DIR --out tracks.txt          a MOTChallenge sequence; from its\n"
+        "                                                  det/det.txt where it has no frames\n"
+        "  densepeds run video.mp4 --tiles 3x2 --focus-lost 0 --full-scan-every 4\n"
+        "                                                  faster, fewer people found in crowds\n"
+        "  densepeds run video.mp4 --param max_age=60      one tracker parameter changed\n"
+        "  densepeds run recorded.mp4 --fill-gaps 40       offline: gaps bridged in the tracks\n"
+        "\n" + presets_help(),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     add_run_options(run)

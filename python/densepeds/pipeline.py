@@ -48,11 +48,9 @@ MOTIONS = ("frvo", "rvo", "sf", "cv")
 # The appearance features of densepeds.segment (segmented: the method's white fill outside the
 # mask; bbox: the plain crop; masked_*: other maskings), or none: motion only.
 FEATURES = (*CROP_FEATURES, "none")
-# The method's segmented boxes (white fill outside the mask). With the int8 detector,
-# mask-weighted pooling (masked_pool) beat them on both real videos and was the default; with
-# the float detector and its preset it is better on MOT20-01-dev (41.1 / 55.2 vs 40.7 / 54.1)
-# but worse on PETS09 (58.6 / 82.4 vs 60.2 / 84.5): not better on both, so the method's form
-# is the default (benchmarks/results/realvideo.md).
+# The method's segmented boxes (white fill outside the mask): no other kind is shown better on
+# the dev grid's video cells, so the method's form is the default
+# (benchmarks/results/accuracy-claims.md, realvideo.md; docs/method.md).
 DEFAULT_FEATURES = "segmented"
 DETECTORS = ("yoloseg", "maskrcnn")
 # Pipeline-level options (the rest of the keyword arguments go to the tracker), applied to the

@@ -80,7 +80,7 @@ class ReID:
     crop's and its mirror's embeddings (twice the work);
     ``context``: crops grow by this fraction of the box's width and height on each side. Both
     are off by default: neither raised the tracked HOTA on the real videos
-    (``benchmarks/results/reid-quality.md``).
+    (``benchmarks/results/decisions.md``).
     """
 
     def __init__(

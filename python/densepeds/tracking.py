@@ -296,12 +296,12 @@ threads                 int    0           0..=1024             threads for a cr
 ======================  =====  ==========  ===================  ====================================
 .. end of generated parameters
 
-Score thresholds are read in the scale of the scores seen (``score_scale``: ``range``, the
-default, places a threshold between the lowest score seen -- the detector's floor -- and the
-highest; ``rank`` takes a quantile of the recent scores; ``absolute`` compares scores as they
-are), so that one set of thresholds serves a det file with unbounded scores (mapped into [0, 1]
-by ``densepeds.motio.read_detections``), a file already cut at 0.5 and the CNN detectors; with
-``absolute``, pass thresholds that suit your scores (or ``-inf``).
+Score thresholds are compared with the scores as they are (``score_scale``: ``absolute``, the
+default; ``range`` places a threshold between the lowest score seen -- the detector's floor --
+and the highest; ``rank`` takes a quantile of the recent scores). The quantile floor and
+ceiling (``score_quantile_floor``, ``score_quantile_ceiling``) let one set of thresholds serve a
+det file with unbounded scores (mapped into [0, 1] by ``densepeds.motio.read_detections``), a
+file already cut at 0.5 and the CNN detectors.
 """
 
 from __future__ import annotations

@@ -370,7 +370,8 @@ macro_rules! tracker_params {
     ) => {
         /// Every tunable of the tracker. Units: pixels, frames; scores in [0, 1]. The tracker's
         /// defaults were tuned motion-only on the six dev sequences together (never per sequence;
-        /// benchmarks/results/tracker.md). The method's pure form is [`TrackerParams::pure`].
+        /// benchmarks/results/accuracy.md says what each was tuned on, accuracy-loo.md checks it
+        /// by leave-one-out). The method's pure form is [`TrackerParams::pure`].
         #[derive(Clone, Debug, PartialEq)]
         pub struct TrackerParams {
             $( #[doc = $doc] pub $name: $ty, )*

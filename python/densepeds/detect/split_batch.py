@@ -3,12 +3,11 @@
 With idle threads sleeping (``onnxutil.session_options``), a session that spreads each layer of
 a small network over several threads pays a wake-up per layer. Splitting the batch instead, one
 part per CPU, each run start to end by one thread, keeps every CPU busy without those
-hand-overs: on 2 CPUs OSNet embeds 8 crops in about 0.65x the time of one call on two threads.
-Items left over when the batch does not divide evenly (fewer than the CPUs) run after, in one
-call. The detector, whose layers are large enough to share, splits only a batch of views that
-divides evenly and runs any other as one call on every CPU (``benchmarks/results/speed.md`` has
-the whole pipeline). onnxruntime releases the GIL while it runs, and a session may run on
-several threads at once.
+hand-overs (``benchmarks/results/speed.md`` times the whole pipeline). Items left over when the
+batch does not divide evenly (fewer than the CPUs) run after, in one call. The detector, whose
+layers are large enough to share, splits only a batch of views that divides evenly and runs any
+other as one call on every CPU. onnxruntime releases the GIL while it runs, and a session may
+run on several threads at once.
 
 Each item's output does not depend on the other items in its batch for the models this package
 runs (convolutions, pooling and the like work image by image), so the split gives bitwise the

@@ -144,8 +144,7 @@ class YoloSegDetector:
     that the people there are seen magnified; their detections merge with the tiles' in the
     same cross-view suppression, and the tile choice learns only from the detections kept from
     the tiles' views. Nothing changes until :meth:`focus` is called. The default was chosen
-    leave-one-out on the four video cells (benchmarks/results/focus.md, which also has its
-    cost in views).
+    leave-one-out on the four video cells (benchmarks/results/decisions.md).
     """
 
     def __init__(

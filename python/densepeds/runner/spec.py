@@ -27,7 +27,7 @@ REID_MODEL_HELP = (
 )
 PARAM_HELP = (
     "tracker parameter, e.g. max_age=30 (repeatable; the names are "
-    "densepeds.tracking.Tracker().params)"
+    "densepeds.tracking.Tracker().params); default: the preset's values"
 )
 
 Params = tuple[tuple[str, Any], ...]
@@ -138,6 +138,7 @@ class Option:
     flags: tuple[str, ...]
     kwargs: Mapping[str, Any]
     shared: bool = True
+    group: str = "input"
 
     @property
     def dest(self) -> str:
@@ -147,8 +148,19 @@ class Option:
         parser.add_argument(*self.flags, **self.kwargs)
 
 
-def _option(*flags: str, shared: bool = True, **kwargs: Any) -> Option:
-    return Option(flags, kwargs, shared)
+def _option(*flags: str, group: str, shared: bool = True, **kwargs: Any) -> Option:
+    return Option(flags, kwargs, shared, group)
+
+
+# run --help's sections, in order, with an optional line under each title.
+GROUPS: dict[str, str | None] = {
+    "input": None,
+    "detection": None,
+    "appearance (re-ID)": None,
+    "tracking": "every tracker parameter and its default: docs/parameters.md",
+    "output": None,
+    "the built-in scene (no INPUT)": None,
+}
 
 
 OPTIONS: tuple[Option, ...] = (
@@ -156,28 +168,33 @@ OPTIONS: tuple[Option, ...] = (
         "input",
         nargs="?",
         help="video file, image folder or MOTChallenge sequence folder (seqinfo.ini, img1/ "
-        "and/or det/det.txt)",
+        "and/or det/det.txt); default: the built-in scene",
         shared=False,
+        group="input",
     ),
     _option(
         "--detections",
         metavar="FILE",
-        help="MOTChallenge det.txt to track from (overrides a sequence's det/det.txt)",
+        help="MOTChallenge det.txt to track from (overrides a sequence's det/det.txt); default: "
+        "the sequence's det/det.txt where it has one",
         shared=False,
+        group="input",
     ),
     _option(
         "--detector",
         choices=DETECTORS,
         help="detect people in the frames with this CNN (default: yoloseg where there are "
         "frames and no det file)",
+        group="detection",
     ),
-    _option("--detector-model", metavar="PATH", help=DETECTOR_MODEL_HELP),
+    _option("--detector-model", metavar="PATH", help=DETECTOR_MODEL_HELP, group="detection"),
     _option(
         "--tiles",
         metavar="auto|CxR|none",
-        help="the CNN detector's views of a frame: auto (default) tiles that follow the people "
+        help="the CNN detector's views of a frame: auto tiles that follow the people "
         "(at most twice the fixed grid's views); CxR a fixed grid of overlapping tiles, e.g. 3x2 "
-        "(faster, fewer people found in crowds); none the whole frame in one view",
+        "(faster, fewer people found in crowds); none the whole frame in one view; default auto",
+        group="detection",
     ),
     _option(
         "--full-scan-every",
@@ -187,6 +204,7 @@ OPTIONS: tuple[Option, ...] = (
         "views of the people found in the last K frames (windows of the tiles' sizes placed over "
         "them, or the tiles that show them, whichever are fewer; faster, the tracks change); "
         "default 1: all views every frame",
+        group="detection",
     ),
     _option(
         "--focus-lost",
@@ -195,17 +213,18 @@ OPTIONS: tuple[Option, ...] = (
         help="the yoloseg detector also looks closer at each person the tracker reports without "
         "a detection (lost behind others): one more view a frame each, of the model input's "
         "shape, its longer side S times their height (more people found in dense crowds, "
-        "slower there); 0 turns it off; default: "
-        "the detector's own (YoloSegDetector's focus_scale)",
+        "slower there); 0 turns it off; default 2.5 (YoloSegDetector's focus_scale)",
+        group="detection",
     ),
-    _option("--reid-model", metavar="PATH", help=REID_MODEL_HELP),
+    _option("--reid-model", metavar="PATH", help=REID_MODEL_HELP, group="appearance (re-ID)"),
     _option(
         "--reid-reuse",
         action="store_true",
         help="a detection that plainly continues one of the previous frame's (it alone overlaps "
         "it, with the same colours; with nearly the same where nobody else is near) keeps that "
         "re-ID embedding, for up to 4 frames in a row, instead of a new one "
-        "(densepeds.reid.ReusePolicy): less re-ID work, the tracks may change",
+        "(densepeds.reid.ReusePolicy): less re-ID work, the tracks may change; default: off",
+        group="appearance (re-ID)",
     ),
     _option(
         "--motion",
@@ -213,12 +232,14 @@ OPTIONS: tuple[Option, ...] = (
         default="frvo",
         help="motion model: frvo (the method), rvo, sf (social forces), cv (constant "
         "velocity); default frvo",
+        group="tracking",
     ),
     _option(
         "--preset",
         choices=PRESETS,
         help="settings for the detections (listed below); default: the detector's own, "
         f"{DEFAULT_PRESET} for det files",
+        group="tracking",
     ),
     _option(
         "--features",
@@ -227,9 +248,13 @@ OPTIONS: tuple[Option, ...] = (
         f"(plain crop), masked_pool (mask-weighted pooling of the re-ID features), masked_mean, "
         f"masked_blur (other fills), none (motion only); default: {DEFAULT_FEATURES} where "
         f"there are frames (segmented on the built-in scene), else none",
+        group="appearance (re-ID)",
     ),
     _option(
-        "--frames", metavar="A:B", help="frame range, 1-based and inclusive (A:, :B and A work)"
+        "--frames",
+        metavar="A:B",
+        help="frame range, 1-based and inclusive (A:, :B and A work); default: every frame",
+        group="input",
     ),
     _option(
         "--out",
@@ -237,8 +262,16 @@ OPTIONS: tuple[Option, ...] = (
         type=Path,
         help="tracks output file, MOTChallenge format (default: out/<input name>.txt)",
         shared=False,
+        group="output",
     ),
-    _option("--video", metavar="OUT.mp4", type=Path, help="annotated video output", shared=False),
+    _option(
+        "--video",
+        metavar="OUT.mp4",
+        type=Path,
+        help="annotated video output; default: none",
+        shared=False,
+        group="output",
+    ),
     _option(
         "--fill-gaps",
         metavar="N",
@@ -247,6 +280,7 @@ OPTIONS: tuple[Option, ...] = (
         help="after the run, replace what each track reported between two of its detections at "
         "most N frames apart (coasted boxes, or none) by the straight line between them: an "
         "offline step, in the tracks file only (--video shows the online tracks); default 0: off",
+        group="output",
     ),
     _option(
         "--param",
@@ -255,15 +289,38 @@ OPTIONS: tuple[Option, ...] = (
         action="append",
         default=[],
         help=PARAM_HELP,
+        group="tracking",
     ),
-    _option("--seed", type=int, default=0, help="built-in scene: random seed", shared=False),
-    _option("--scene-frames", type=int, default=150, help="built-in scene: frames", shared=False),
-    _option("--quiet", "-q", action="store_true", help="no progress bar", shared=False),
+    _option(
+        "--seed",
+        type=int,
+        default=0,
+        help="random seed; default 0",
+        shared=False,
+        group="the built-in scene (no INPUT)",
+    ),
+    _option(
+        "--scene-frames",
+        type=int,
+        default=150,
+        help="frames; default 150",
+        shared=False,
+        group="the built-in scene (no INPUT)",
+    ),
+    _option(
+        "--quiet",
+        "-q",
+        action="store_true",
+        help="no progress bar; default: a progress bar",
+        shared=False,
+        group="output",
+    ),
     _option(
         "--allow-partial",
         action="store_true",
-        help="keep the tracks of a input that ends before its expected frame count (a truncated "
-        "video, an image folder shorter than its seqLength) instead of failing",
+        help="keep the tracks of an input that ends before its expected frame count (a truncated "
+        "video, an image folder shorter than its seqLength) instead of failing; default: fail",
+        group="input",
     ),
 )
 SHARED: tuple[Option, ...] = tuple(o for o in OPTIONS if o.shared)
@@ -271,8 +328,13 @@ SHARED: tuple[Option, ...] = tuple(o for o in OPTIONS if o.shared)
 
 def add_run_options(parser: argparse.ArgumentParser, *, shared_only: bool = False) -> None:
     """Add ``run``'s options to ``parser`` (``shared_only``: those of every input, for batch)."""
-    for option in SHARED if shared_only else OPTIONS:
-        option.add_to(parser)
+    chosen = SHARED if shared_only else OPTIONS
+    for title, line in GROUPS.items():
+        members = [o for o in chosen if o.group == title]
+        if members:
+            group = parser.add_argument_group(title, line)
+            for option in members:
+                option.add_to(group)  # type: ignore[arg-type]  # a group adds options as a parser
 
 
 def add_option(parser: argparse.ArgumentParser, dest: str) -> None:
