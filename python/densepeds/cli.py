@@ -922,10 +922,11 @@ def _models_listing() -> str:
             f"    sha256: {m.sha256 or 'none pinned (made locally)'}",
             f"    contract: {m.contract}",
         ]
+        how = modelfiles.how_to_get(m.file)
         if m.urls:
             lines.append("    published at: " + " , then ".join(m.urls))
-        else:
-            lines.append(f"    get it: {modelfiles.how_to_get(m.file)}")
+        elif how != m.source:
+            lines.append(f"    get it: {how}")
     total = sum(modelfiles.MODELS[n].size or 0 for n in modelfiles.DEFAULT_SET)
     lines.append(
         f"`densepeds models fetch` gets {' + '.join(modelfiles.DEFAULT_SET)} ({mb(total)})."
