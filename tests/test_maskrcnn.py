@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 import onnx
 import pytest
+from contract_models import zoo_maskrcnn
 from densepeds.detect import make_detector
 from densepeds.errors import ModelError, ParameterError
-from contract_models import zoo_maskrcnn
 from onnx import TensorProto, helper, numpy_helper
 
 BOXES = np.array([[10, 10, 40, 50], [50, 5, 70, 45], [0, 0, 5, 5], [60, 40, 90, 75]], np.float32)
