@@ -213,3 +213,14 @@ def test_densepeds_run_with_the_fetched_contracts(
     for frame in (3, 4, 5):
         got = rows[rows[:, 0] == frame][:, 2:6]
         assert np.allclose(np.sort(got, axis=0), np.sort(want, axis=0), atol=0.5)
+
+
+def test_contract_rules() -> None:
+    from densepeds.detect.maskrcnn import _contract_from_graph
+
+    assert _contract_from_graph((3, "height", "width"), ("nbox", 1, 28, 28)) == "zoo"
+    assert _contract_from_graph((3, 800, 1088), ("nbox", 1, 28, 28)) == "zoo"
+    assert _contract_from_graph((3, "H", "W"), ("N", 1, "H", "W")) == "torchvision"
+    assert _contract_from_graph((3, 540, 960), ("N", 1, 540, 960)) == "torchvision"
+    assert _contract_from_graph((3, "H", "W"), ("N", 1, None, None)) is None
+    assert _contract_from_graph((3, "H", "W"), ("N", 1, "a", "b")) is None

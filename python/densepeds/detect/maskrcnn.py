@@ -94,7 +94,14 @@ class MaskRCNNDetector:
     def _probe(self) -> str:
         """The contract from the masks of one blank image (graphs without output shapes)."""
         blank = np.zeros((3, PROBE_SIDE, PROBE_SIDE), np.float32)
-        masks = self.session.run(None, {self.input_name: blank})[self._order[3]]
+        try:
+            masks = self.session.run(None, {self.input_name: blank})[self._order[3]]
+        except Exception as err:  # noqa: BLE001 (onnxruntime's own errors, in one line)
+            first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+            raise ModelError(
+                f"{self.path}: cannot tell its Mask R-CNN contract (a blank "
+                f"{PROBE_SIDE}x{PROBE_SIDE} image failed: {first}); expected {EXPECTED}"
+            ) from None
         return "torchvision" if tuple(np.shape(masks)[2:]) == (PROBE_SIDE,) * 2 else "zoo"
 
     def _outputs(self, x: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -214,11 +221,11 @@ def _output_order(outputs: list[onnxutil.TensorSpec]) -> tuple[int, int, int, in
 def _contract_from_graph(
     image: tuple[int | str | None, ...], masks: tuple[int | str | None, ...]
 ) -> str | None:
-    """'zoo' for masks of a fixed size, 'torchvision' for masks as large as the input, None
-    where the graph does not say."""
-    tail = masks[2:]
-    if all(isinstance(d, int) for d in tail) and not all(isinstance(d, int) for d in image[1:]):
-        return "zoo"
-    if all(isinstance(d, str) for d in tail) and tuple(tail) == tuple(image[1:]):
+    """'torchvision' for masks as large as the input (the same dimension names, or the same
+    fixed sizes), 'zoo' for masks of another fixed size, None where the graph does not say."""
+    tail = tuple(masks[2:])
+    if len(tail) == 2 and all(d is not None for d in tail) and tail == tuple(image[1:]):
         return "torchvision"
+    if len(tail) == 2 and all(isinstance(d, int) for d in tail):
+        return "zoo"
     return None
