@@ -154,7 +154,8 @@ MODELS: dict[str, ModelInfo] = {
             name="yoloseg",
             file="yolov8n-seg-320-int8.onnx",
             role="detector (--detector yoloseg, the default where there are frames)",
-            licence="AGPL-3.0 (Ultralytics YOLOv8n-seg weights, quantised by STMicroelectronics)",
+            licence="AGPL-3.0 (Ultralytics YOLOv8n-seg weights, quantised by STMicroelectronics: "
+            "a program or service that uses them must publish its source under the AGPL)",
             contract="input [1,320,320,3] NHWC RGB float in [0,1], letterboxed; outputs "
             "[1,116,2100] (cx,cy,w,h normalised, 80 COCO class scores, 32 mask coefficients) and "
             "[1,80,80,32] mask prototypes",
