@@ -2,7 +2,8 @@
 support (206 partial content), an optional cut-off that drops the connection mid-file, and
 ``special`` answers for some paths: ``("redirect", location)`` (302), ``("announce", n)`` (a
 200 announcing n bytes, sending at most the file), ``("stream", n)`` (n junk bytes, no length,
-closed after; ``sent[path]`` records how many the client took before it hung up)."""
+closed after; ``sent[path]`` records how many the client took before it hung up), ``("slow", s)``
+(served as usual after s seconds)."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ import functools
 import http.server
 import re
 import threading
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -32,8 +34,11 @@ class _Handler(http.server.SimpleHTTPRequestHandler):
         self.ranges.append(header)
         self.paths.append(self.path)
         if self.path in self.special:
-            self._special(*self.special[self.path])
-            return
+            kind, arg = self.special[self.path]
+            if kind != "slow":
+                self._special(kind, arg)
+                return
+            time.sleep(arg)  # then served as usual
         if not path.is_file():
             self.send_error(404)
             return

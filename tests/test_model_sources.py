@@ -282,3 +282,32 @@ def test_hosts_base_replaces_each_host(monkeypatch: pytest.MonkeyPatch) -> None:
     assert modelfetch.source_urls(info) == ["http://127.0.0.1:9/flat/MaskRCNN-12.onnx"]
     with pytest.raises(ModelError, match="only http and https"):
         modelfetch.source_urls(info, "file:///tmp")
+
+
+def test_concurrent_fetches_download_once(
+    cache: Path, graphs: dict[str, Path], tmp_path: Path
+) -> None:
+    """Two fetches of one model at once: the second waits for the first and finds the verified
+    file, instead of both writing into one partial file."""
+    import threading
+
+    name = "youtureid-int8"
+    file = MODELS[name].file
+    (tmp_path / file).write_bytes(graphs[name].read_bytes())
+    paths: list[str] = []
+    errors: list[BaseException] = []
+    with serve(tmp_path, special={f"/{file}": ("slow", 0.5)}, paths=paths) as (base, _):
+
+        def one() -> None:
+            try:
+                modelfetch.fetch(name, base_url=base, quiet=True)
+            except BaseException as err:  # noqa: BLE001
+                errors.append(err)
+
+        threads = [threading.Thread(target=one) for _ in range(2)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+    assert not errors and paths == [f"/{file}"]
+    assert _leftovers(cache) == [file]

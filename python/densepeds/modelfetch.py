@@ -29,7 +29,8 @@ import sys
 import tempfile
 import urllib.error
 import urllib.request
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
 from http.client import HTTPException, HTTPResponse
 from pathlib import Path
 from typing import Any
@@ -147,27 +148,54 @@ def fetch(
         raise ModelError(f"{info.name} has no pinned download: {info.source}")
     dest = Path(dest_dir).expanduser() if dest_dir is not None else cache_dir()
     target = dest / info.file
-    if target.is_file():
-        try:
-            _check(target, info, str(target))
-            return target
-        except ModelError:
-            pass  # replaced below
+    if _verified(target, info):
+        return target
     urls = source_urls(info, base_url)
     _make_dir(dest)
-    part = target.with_name(target.name + ".part")
-    failures: list[str] = []
-    for url in urls:
-        try:
-            _fetch_from(url, part, info, quiet)
-        except ModelError as err:
-            failures.append(str(err))
-            continue
-        os.replace(part, target)
-        return target
+    with _folder_lock(dest):  # one download at a time into a folder: no interleaved .part
+        if _verified(target, info):  # another fetch got it while this one waited
+            return target
+        part = target.with_name(target.name + ".part")
+        failures: list[str] = []
+        for url in urls:
+            try:
+                _fetch_from(url, part, info, quiet)
+            except ModelError as err:
+                failures.append(str(err))
+                continue
+            os.replace(part, target)
+            return target
     if len(failures) == 1:
         raise ModelError(failures[0])
     raise ModelError(f"{info.file}: no source gave the pinned file ({'; '.join(failures)})")
+
+
+def _verified(target: Path, info: ModelInfo) -> bool:
+    """``target`` is there and is the pinned file (one that is not is replaced by the fetch)."""
+    if not target.is_file():
+        return False
+    try:
+        _check(target, info, str(target))
+    except ModelError:
+        return False
+    return True
+
+
+@contextmanager
+def _folder_lock(folder: Path) -> Iterator[None]:
+    """An exclusive lock on ``folder`` (flock on the folder itself: no lock file is left); a
+    second fetch into it waits, then finds the verified file. No-op where flock is missing."""
+    try:
+        import fcntl
+    except ImportError:  # not POSIX
+        yield
+        return
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)
 
 
 def _fetch_from(url: str, part: Path, info: ModelInfo, quiet: bool) -> None:
