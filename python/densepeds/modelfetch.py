@@ -18,6 +18,7 @@ lines here, and pooch has neither HTTP Range resumption nor a cap on what a serv
   pinned size without announcing it is refused after one byte more.
 - Redirects: followed (the published hosts redirect to their CDNs) up to ``MAX_REDIRECTS``, to
   http(s) only and never from https down to http.
+- One at a time: a fetch locks the destination folder; a second one waits, then finds the file.
 """
 
 from __future__ import annotations
