@@ -360,8 +360,8 @@ def _add_models_parser(sub: Any) -> None:
         "check it against our contract and install it",
         description="Run Ultralytics' ONNX export of YOLOv8n-seg (yoloseg; AGPL-3.0 weights) "
         "or torch's of torchreid's OSNet x0.25 (osnet), check the file against the contract "
-        "densepeds reads, and install it into the user cache. Needs pip install "
-        "'densepeds[export]' plus ultralytics (yoloseg) or torchreid (osnet).",
+        "densepeds reads, and install it into the user cache. yoloseg needs pip install "
+        "ultralytics (AGPL-3.0, not in the extra); osnet needs pip install 'densepeds[export]'.",
     )
     ex.add_argument("model", choices=("yoloseg", "osnet"), help="which model to export")
     ex.add_argument(
