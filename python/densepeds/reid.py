@@ -234,12 +234,17 @@ class ReID:
         if weights is not None:
             session, _ = self._pooled_session()
             feed[onnxutil.POOL_WEIGHTS] = weights
-        if self.one_at_a_time:
-            rows = [
-                session.run(None, {k: v[i : i + 1] for k, v in feed.items()})[0]
-                for i in range(len(batch_bgr))
-            ]
-            out = np.concatenate([np.asarray(r) for r in rows])
+        if self.one_at_a_time:  # each crop its own call; with threads=None, one per CPU at once
+
+            def one(i: int) -> np.ndarray:
+                return np.asarray(session.run(None, {k: v[i : i + 1] for k, v in feed.items()})[0])
+
+            items = range(len(batch_bgr))
+            if self.threads is None and len(batch_bgr) > 1:
+                rows = list(split_batch.cpu_pool().map(one, items))
+            else:
+                rows = [one(i) for i in items]
+            out = np.concatenate(rows)
         elif self.threads is None:
             out = split_batch.run_split(session, feed)[0]
         else:
