@@ -335,8 +335,8 @@ def _add_models_parser(sub: Any) -> None:
         "names",
         nargs="*",
         metavar="NAME",
-        help=f"model names or files (default: {' + '.join(DEFAULT_SET)}, the paper's Mask "
-        "R-CNN and YoutuReID)",
+        help=f"model names or files (default: {' + '.join(DEFAULT_SET)}: Mask R-CNN, the "
+        "paper's detector network, and YoutuReID)",
     )
     fe.add_argument(
         "--url",

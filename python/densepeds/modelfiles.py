@@ -91,7 +91,7 @@ YOUTU_CONTRACT = (
 MASKRCNN_ZOO_SOURCE = (
     "ONNX Model Zoo (github.com/onnx/models, " + ONNX_ZOO_DIR + "; mirror "
     "huggingface.co/onnxmodelzoo/legacy_models): Mask R-CNN R-50-FPN trained on COCO, the "
-    "DensePeds paper's detector"
+    "detector network the DensePeds paper uses"
 )
 YOUTU_SOURCE = (
     "OpenCV Zoo (github.com/opencv/opencv_zoo, " + OPENCV_ZOO_DIR + "; mirror "
@@ -104,8 +104,8 @@ MODELS: dict[str, ModelInfo] = {
         ModelInfo(
             name="maskrcnn-zoo-int8",
             file="MaskRCNN-12-int8.onnx",
-            role="detector (--detector maskrcnn), fetched by default: the paper's Mask R-CNN, "
-            "int8 weights",
+            role="detector (--detector maskrcnn), fetched by default: Mask R-CNN R-50-FPN (the "
+            "paper's detector network), int8 weights",
             licence="MIT (ONNX Model Zoo)",
             contract=MASKRCNN_ZOO_CONTRACT,
             source=MASKRCNN_ZOO_SOURCE + ", quantised to int8 by the zoo",
@@ -117,8 +117,8 @@ MODELS: dict[str, ModelInfo] = {
         ModelInfo(
             name="maskrcnn-zoo",
             file="MaskRCNN-12.onnx",
-            role="detector (--detector maskrcnn): the paper's Mask R-CNN, float weights; used "
-            "in place of the int8 copy where present",
+            role="detector (--detector maskrcnn): Mask R-CNN R-50-FPN (the paper's detector "
+            "network), float weights; used in place of the int8 copy where present",
             licence="MIT (ONNX Model Zoo)",
             contract=MASKRCNN_ZOO_CONTRACT,
             source=MASKRCNN_ZOO_SOURCE,
