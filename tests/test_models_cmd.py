@@ -48,9 +48,15 @@ def test_listing_shows_contracts_and_what_was_found(
     assert rc == 0
     for info in MODELS.values():
         assert info.file in out and info.licence in out and info.contract in out
-    assert f"sha256: {OSNET.sha256}" in out and f"({OSNET.size} bytes)" in out
+        assert info.source in out and info.role in out
+        assert all(url in out for url in info.urls)
+    assert f"sha256: {OSNET.sha256}" in out and f"{OSNET.size} bytes" in out
+    assert "45.8 MB, 45769352 bytes" in out  # the default detector's download
     assert str(cache) in out and "found: no" in out
-    assert "no published ONNX" in out  # neither pinned model has a published ONNX URL
+    assert "no published ONNX" in out  # neither shipped model has a published ONNX URL
+    assert "AGPL-3.0 (Ultralytics" in out
+    assert "`densepeds models fetch` gets maskrcnn-zoo-int8 + youtureid-int8 (72.5 MB)" in out
+    assert "`densepeds run` uses now: detector maskrcnn (MaskRCNN-12-int8.onnx)" in out
     cache.mkdir(parents=True)
     shutil.copy(shared_path("models", OSNET.file), cache / OSNET.file)
     rc, out, _ = _run(capsys, "models", "list")
@@ -84,7 +90,7 @@ def test_fetch_without_a_url_says_why(cache: Path, capsys: pytest.CaptureFixture
 def test_fetch_from_a_mirror_then_find(cache: Path, capsys: pytest.CaptureFixture[str]) -> None:
     models = shared_path("models")
     with serve(models) as (base, ranges):
-        rc, out, _ = _run(capsys, "models", "fetch", "--url", base, "-q")
+        rc, out, _ = _run(capsys, "models", "fetch", "yoloseg", "osnet", "--url", base, "-q")
         assert rc == 0, out
         assert ranges == [None, None]  # one whole download per model
         for info in (YOLO, OSNET):
@@ -122,7 +128,8 @@ def test_corrupted_download_is_refused(
     (mirror / OSNET.file).write_bytes(bytes(data[:1000]))  # truncated
     with serve(mirror) as (base, _):
         rc, _, err = _run(capsys, "models", "fetch", "osnet", "--url", base, "-q")
-    assert rc == 2 and "1000 of" in err and not (cache / OSNET.file).exists()
+    assert rc == 2 and "file is 1000 bytes" in err and not (cache / OSNET.file).exists()
+    assert not list(cache.glob("*.part"))
 
 
 def test_interrupted_download_resumes_with_a_range_request(
@@ -216,10 +223,14 @@ def _umask() -> int:
 def test_run_without_models_names_the_command(
     cache: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
+    """With no model anywhere, run asks for the default set's detector and says how to get it."""
     video = shared_path("data", "PETS09-S2L1-dev", "vtest.avi")
     rc, _, err = _run(capsys, "run", str(video), "--frames", "1:2")
     assert rc == 2 and len(err.strip().splitlines()) == 1, err
-    assert f"densepeds models install PATH/TO/{YOLO.file}" in err and str(cache) in err
+    assert "model MaskRCNN-12-int8.onnx not found" in err and str(cache) in err
+    assert "run `densepeds models fetch` (downloads maskrcnn-zoo-int8, youtureid-int8" in err
+    rc, _, err = _run(capsys, "run", str(video), "--frames", "1:2", "--detector", "yoloseg")
+    assert rc == 2 and f"densepeds models install PATH/TO/{YOLO.file}" in err
 
 
 def test_unwritable_destination_is_one_line(

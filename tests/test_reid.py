@@ -384,3 +384,51 @@ def test_run_reid_reuse_flag_reaches_the_reid(
     assert (tmp_path / "t.txt").stat().st_size > 0
     said = re.search(r"re-ID: (\d+) of (\d+) embeddings reused", capsys.readouterr().out)
     assert said is not None and int(said[2]) > 0
+
+
+# --- OpenCV Zoo YoutuReID's contract: 768-d, fixed batch 1 ----------------------------------
+
+
+@pytest.mark.parametrize("variant", ["published", "initializer"])
+@pytest.mark.parametrize("threads", [None, 1])
+def test_youtu_contract_any_width_and_fixed_batch(
+    tmp_path: Path, variant: str, threads: int | None
+) -> None:
+    """768-d rows equal to an independent reference (RGB, /255, ImageNet mean/std, 256x128),
+    whether the fixed batch of 1 could be rewritten (initializer) or not (published: the model
+    then runs one crop per call)."""
+    from contract_models import YOUTU_DIM, youtu_reference, youtu_reid
+
+    reid = ReID(youtu_reid(tmp_path / "y.onnx", variant), threads=threads, batch_size=4)
+    assert reid.dim == YOUTU_DIM
+    assert reid.one_at_a_time == (variant == "published")
+    rng = np.random.default_rng(5)
+    crops = [rng.integers(0, 256, (int(h), int(w), 3), np.uint8) for h, w in [(256, 128)] * 3]
+    crops += [rng.integers(0, 256, (90, 40, 3), np.uint8) for _ in range(4)]
+    got = reid.embed_crops(crops)
+    assert got.shape == (7, YOUTU_DIM)
+    for crop, row in zip(crops, got, strict=True):
+        resized = cv2.resize(crop, (128, 256), interpolation=cv2.INTER_LINEAR)
+        want = youtu_reference(resized[..., ::-1])  # BGR crop -> RGB
+        assert np.allclose(row, want, atol=1e-4)
+
+
+def test_a_model_ignoring_the_batch_size_is_one_clear_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """It claims any batch but gives one row for two crops: refused at load with one line,
+    not a reshape traceback later (issue 40)."""
+    from contract_models import youtu_reid
+    from densepeds.cli import main
+
+    bad = youtu_reid(tmp_path / "bad.onnx", "ignores_batch")
+    with pytest.raises(ModelError, match=r"output \[1, 768\] for a batch of 2 crops"):
+        ReID(bad)
+    video = shared_path("data", "PETS09-S2L1-dev", "vtest.avi")
+    dets = tmp_path / "det.txt"
+    dets.write_text("1,-1,100,100,40,90,0.9\n1,-1,300,120,40,90,0.9\n")
+    rc = main(
+        ["run", str(video), "--frames", "1:1", "--detections", str(dets), "--reid-model", str(bad)]
+    )
+    err = capsys.readouterr().err
+    assert rc == 2 and len(err.strip().splitlines()) == 1 and "ignores the batch size" in err

@@ -176,33 +176,36 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _add_models_parser(sub: Any) -> None:
-    from densepeds.modelfiles import URL_ENV_VAR
+    from densepeds.modelfiles import DEFAULT_SET, HOSTS_ENV_VAR, URL_ENV_VAR
 
     mo = sub.add_parser(
         "models",
-        help="list the known models and where they are; fetch or install them",
-        description="With no action: list the models densepeds knows (file, size, sha256, "
-        "licence, input/output contract), the folders searched and what was found there.",
+        help="list the known models and where they are; fetch, install or export them",
+        description="With no action: list the models densepeds knows (what each is for, its "
+        "source, licence, size, sha256 and input/output contract), the folders searched, what "
+        "was found there and which detector and re-ID model `densepeds run` uses.",
     )
     act = mo.add_subparsers(dest="action", parser_class=_Parser, metavar="ACTION")
     act.add_parser("list", help="the same as no action")
     fe = act.add_parser(
         "fetch",
         help="download models into the user cache (pinned, sha256-verified, resumable)",
-        description="Download models into the user cache, verify their sha256, resume an "
-        "interrupted download.",
+        description="Download models from their published sources (the mirror when the first "
+        "host fails) into the user cache, verify their size and sha256, resume an interrupted "
+        f"download. ${HOSTS_ENV_VAR}=BASE fetches https://HOST/PATH from BASE/HOST/PATH.",
     )
     fe.add_argument(
         "names",
         nargs="*",
         metavar="NAME",
-        help="model names or files (default: every model with a pinned checksum)",
+        help=f"model names or files (default: {' + '.join(DEFAULT_SET)}: Mask R-CNN, the "
+        "paper's detector network, and YoutuReID)",
     )
     fe.add_argument(
         "--url",
         metavar="BASE",
         help=f"mirror base URL: BASE/<file> is downloaded (default: ${URL_ENV_VAR}, else the "
-        "model's published URL)",
+        "model's published URLs)",
     )
     fe.add_argument("--dir", type=Path, metavar="DIR", help="install here instead of the cache")
     fe.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
@@ -214,6 +217,29 @@ def _add_models_parser(sub: Any) -> None:
     )
     ins.add_argument("source", type=Path, metavar="FILE|DIR", help="a model file or a folder")
     ins.add_argument("--dir", type=Path, metavar="DIR", help="install here instead of the cache")
+    ex = act.add_parser(
+        "export",
+        help="export yoloseg or osnet with its official exporter (the optional export extra), "
+        "check it against our contract and install it",
+        description="Run Ultralytics' ONNX export of YOLOv8n-seg (yoloseg; AGPL-3.0 weights) "
+        "or torch's of torchreid's OSNet x0.25 (osnet), check the file against the contract "
+        "densepeds reads, and install it into the user cache. yoloseg needs pip install "
+        "ultralytics (AGPL-3.0, not in the extra); osnet needs pip install 'densepeds[export]'.",
+    )
+    ex.add_argument("model", choices=("yoloseg", "osnet"), help="which model to export")
+    ex.add_argument(
+        "--weights",
+        metavar="FILE|NAME",
+        help="yoloseg: Ultralytics weights or model config (default yolov8n-seg.pt, which "
+        "Ultralytics downloads); osnet: torchreid's osnet_x0_25 MSMT17 .pth file (required "
+        "unless --random)",
+    )
+    ex.add_argument(
+        "--random",
+        action="store_true",
+        help="export the architecture with random weights (no download; for testing)",
+    )
+    ex.add_argument("--dir", type=Path, metavar="DIR", help="install here instead of the cache")
     _add_quantize_parser(act)
 
 
@@ -305,7 +331,13 @@ def _cmd_models(args: argparse.Namespace) -> int:
         return 0
     if args.action == "quantize":
         return _cmd_quantize(args)
-    names = args.names or [m.name for m in modelfetch.fetchable()]
+    if args.action == "export":
+        from densepeds import modelexport
+
+        path = modelexport.export(args.model, args.weights, random=args.random, dest_dir=args.dir)
+        print(f"{args.model}: exported, checked against the contract, installed {path}")
+        return 0
+    names = args.names or modelfetch.default_names()
     for name in names:
         info = modelfiles.model_info(name)
         path = modelfetch.fetch(info.name, base_url=args.url, dest_dir=args.dir, quiet=args.quiet)
@@ -357,20 +389,39 @@ def _cmd_quantize(args: argparse.Namespace) -> int:
 def _models_listing() -> str:
     from densepeds import modelfiles
 
+    def mb(size: int) -> str:
+        return f"{size / 1e6:.1f} MB"
+
     lines = ["Models densepeds knows:"]
     for m in modelfiles.MODELS.values():
         found = modelfiles.locate(m.file)
-        size = f"{m.size} bytes" if m.size is not None else "size not fixed"
+        size = f"{mb(m.size)}, {m.size} bytes" if m.size is not None else "size not fixed"
         lines += [
-            f"  {m.name}: {m.file} ({size}) -- {m.role}",
+            f"  {m.name}: {m.file} ({size})",
+            f"    for: {m.role}",
             f"    found: {found if found else 'no'}",
-            f"    sha256: {m.sha256 or 'none pinned (made locally)'}",
             f"    licence: {m.licence}",
+            f"    source: {m.source}",
+            f"    sha256: {m.sha256 or 'none pinned (made locally)'}",
             f"    contract: {m.contract}",
-            f"    get it: {m.url or modelfiles.how_to_get(m.file)}",
         ]
+        how = modelfiles.how_to_get(m.file)
+        if m.urls:
+            lines.append("    published at: " + " , then ".join(m.urls))
+        elif how != m.source:
+            lines.append(f"    get it: {how}")
+    total = sum(modelfiles.MODELS[n].size or 0 for n in modelfiles.DEFAULT_SET)
+    lines.append(
+        f"`densepeds models fetch` gets {' + '.join(modelfiles.DEFAULT_SET)} ({mb(total)})."
+    )
+    kind = modelfiles.default_detector()
+    lines.append(
+        f"`densepeds run` uses now: detector {kind} ({modelfiles.default_model_file(kind)}), "
+        f"re-ID {modelfiles.default_reid_file()} (the first present of detectors "
+        f"{', '.join(modelfiles.DETECTOR_ORDER)}; re-ID {', '.join(modelfiles.REID_ORDER)})"
+    )
     lines.append("Searched, in order ($DENSEPEDS_MODEL_DIR, then the user cache):")
-    lines += [f"  {d}{'' if d.is_dir() else ' (missing)'}" for d in modelfiles.search_dirs()]
+    lines += [f"  {d}{modelfiles.folder_state(d)}" for d in modelfiles.search_dirs()]
     return "\n".join(lines)
 
 

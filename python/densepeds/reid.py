@@ -1,9 +1,12 @@
 """Person re-identification embeddings through onnxruntime: crops in, L2-normalised rows out.
 
 Each supported model contract is a row of MODEL_KINDS (layout, dtype, colour order,
-normalisation); the input size is read from the model. Crops are resized and sent in batches of
-``batch_size`` per onnxruntime call; a model with a fixed batch of 1 is rewritten to a dynamic
-batch once at load time.
+normalisation); the input size and the embedding's width (512 for OSNet, 768 for YoutuReID,
+anything) are read from the model. Crops are resized and sent in batches of ``batch_size`` per
+onnxruntime call; a model with a fixed batch of 1 is rewritten to a dynamic batch once at load
+time, and where that copy does not give one row per crop (a reshape to batch 1 the rewrite cannot
+see) the model runs as published, one crop per call. A model that claims any batch but ignores
+it is refused with one clear error.
 """
 
 from __future__ import annotations
@@ -20,7 +23,7 @@ import onnxruntime as ort
 from densepeds.detect import onnxutil, split_batch
 from densepeds.errors import ModelError, ParameterError
 from densepeds.frames import check_frame
-from densepeds.modelfiles import find_model
+from densepeds.modelfiles import default_reid_file, find_model
 from densepeds.segment import bbox_crop, crops_for, person_masks
 from densepeds.types import Detections
 
@@ -45,7 +48,8 @@ class ModelKind:
 
 
 MODEL_KINDS: dict[str, ModelKind] = {
-    # torchreid OSNet family: [N,3,256,128] RGB /255, ImageNet mean/std -> [N,512].
+    # torchreid OSNet family: [N,3,256,128] RGB /255, ImageNet mean/std -> [N,512]; OpenCV Zoo's
+    # YoutuReID has the same input ([1,3,256,128]) -> [1,768].
     "osnet": ModelKind(
         "NCHW", np.float32, True, 1 / 255, (0.485, 0.456, 0.406), (0.229, 0.224, 0.225)
     ),
@@ -103,7 +107,7 @@ class ReID:
             raise ParameterError(f"context must be in [0, 1], got {context}")
         self.flip = flip
         self.context = context
-        path = find_model(DEFAULT_MODEL) if model is None else find_model(str(model))
+        path = find_model(default_reid_file()) if model is None else find_model(str(model))
         self.path: Path = path
         self.batch_size = batch_size
         self.input_size = input_size
@@ -143,7 +147,9 @@ class ReID:
         self.height, self.width = int(hw[0]), int(hw[1])  # type: ignore[arg-type]
         self.input_name = inputs[0].name
         self._raw_shape: tuple[int, ...] | None = None  # the network's last output shape
+        self.one_at_a_time = False  # the model runs as published, one crop per call
         self.dim = self._probe_dim()
+        self._probe_batch()
         self._pooled: tuple[ort.InferenceSession, tuple[int, int]] | None = None
         policy = ReusePolicy() if reuse is True else reuse or None
         self.reuse: ReusePolicy | None = policy
@@ -165,6 +171,32 @@ class ReID:
             )
         return int(flat[1])
 
+    def _probe_batch(self) -> None:
+        """Two blank crops in one call must give two rows. A fixed-batch model whose
+        dynamic-batch copy does not falls back to running as published, one crop per call; any
+        other model that does not is refused (ModelError)."""
+        feed = {self.input_name: self._input(np.zeros((2, self.height, self.width, 3), np.uint8))}
+        quiet = ort.RunOptions()
+        quiet.log_severity_level = 4  # a failing copy is expected here: no ORT error line
+        try:
+            shape = np.shape(self.session.run(None, feed, quiet)[0])
+            error = None
+        except Exception as err:  # noqa: BLE001 (onnxruntime fails in its own ways)
+            shape, error = (), err
+        if len(shape) > 0 and shape[0] == 2:
+            return
+        if self.rewritten:
+            self.session = onnxutil.make_session(onnxutil.load_model(self.path), self.threads or 1)
+            self.rewritten = False
+            self.one_at_a_time = True
+            return
+        first_line = str(error).strip().splitlines()[0] if error is not None else ""
+        got = f"output {list(shape)}" if error is None else f"an error ({first_line})"
+        raise ModelError(
+            f"{self.path}: the re-ID model gave {got} for a batch of 2 crops: its output "
+            "ignores the batch size (export it with a dynamic batch, or with a fixed batch of 1)"
+        )
+
     def reset(self) -> None:
         """Forget the previous frame (start of a new video): nothing is reused across it."""
         self._previous.clear()
@@ -175,7 +207,9 @@ class ReID:
             model = onnxutil.load_model(self.path)
             if self.input_size is not None:
                 model = onnxutil.with_input_size(model, *self.input_size)
-            if onnxutil.has_fixed_batch(model) or self.input_size is not None:
+            if not self.one_at_a_time and (
+                onnxutil.has_fixed_batch(model) or self.input_size is not None
+            ):
                 model = onnxutil.with_dynamic_batch(model)
             pooled, size = onnxutil.with_weighted_final_pool(model)
             threads = 1 if self.threads is None else self.threads
@@ -200,11 +234,28 @@ class ReID:
         if weights is not None:
             session, _ = self._pooled_session()
             feed[onnxutil.POOL_WEIGHTS] = weights
-        if self.threads is None:
+        if self.one_at_a_time:  # each crop its own call; with threads=None, one per CPU at once
+
+            def one(i: int) -> np.ndarray:
+                return np.asarray(session.run(None, {k: v[i : i + 1] for k, v in feed.items()})[0])
+
+            items = range(len(batch_bgr))
+            if self.threads is None and len(batch_bgr) > 1:
+                rows = list(split_batch.cpu_pool().map(one, items))
+            else:
+                rows = [one(i) for i in items]
+            out = np.concatenate(rows)
+        elif self.threads is None:
             out = split_batch.run_split(session, feed)[0]
         else:
             out = session.run(None, feed)[0]
         self._raw_shape = np.shape(out)
+        if len(self._raw_shape) == 0 or self._raw_shape[0] != len(batch_bgr):
+            raise ModelError(
+                f"{self.path}: the re-ID model gave output {list(self._raw_shape)} for "
+                f"{len(batch_bgr)} crops: its output ignores the batch size (export it with a "
+                "dynamic batch, or with a fixed batch of 1)"
+            )
         return np.asarray(out, np.float32).reshape(len(batch_bgr), -1)
 
     def _input(self, batch_bgr: npt.NDArray[np.uint8]) -> np.ndarray:

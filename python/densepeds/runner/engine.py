@@ -40,7 +40,9 @@ def open_run(spec: RunSpec, models: Any = None) -> tuple[Any, Any, Any, Path, An
     if detector is None and spec.detections is None and not has_own_dets:
         if not has_images:
             raise ParameterError(f"{spec.input}: no images and no det/det.txt to track from")
-        detector = "yoloseg"
+        from densepeds.modelfiles import default_detector
+
+        detector = default_detector(spec.detector_model)
     features = spec.features or default_features(has_images)
     if features != "none" and not has_images:
         raise ParameterError(
