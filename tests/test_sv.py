@@ -8,7 +8,6 @@ import sys
 import numpy as np
 import numpy.typing as npt
 import pytest
-
 from densepeds.errors import InputError
 from densepeds.pipeline import Pipeline
 from densepeds.tracking import Tracker

@@ -116,7 +116,16 @@ def build_parser() -> argparse.ArgumentParser:
         "input",
         nargs="?",
         help="video file, image folder or MOTChallenge sequence folder (seqinfo.ini, img1/ "
-        "and/or det/det.txt)",
+        "and/or det/det.txt), or a live camera: rtsp://..., http(s)://..., /dev/videoN (tracks "
+        "written frame by frame; exit code 3 when the stream ends or disconnects)",
+    )
+    run.add_argument(
+        "--reconnect",
+        metavar="N",
+        type=int,
+        default=0,
+        help="live camera: when the stream ends or stalls, try to open it again up to N times, "
+        "1 s apart (default 0)",
     )
     run.add_argument(
         "--detections",
@@ -626,6 +635,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
     parse_frame_range(args.frames)  # a bad range fails before any work
     if args.input is None:
         return _run_scene(args)
+    from densepeds.live import is_live, run_live
+
+    if is_live(args.input):
+        return run_live(args)
     src, pipe, dets, out, rng = open_run(args)
     frames, n_ids = _track_source(args, pipe, src, out, dets, rng)
     print(_summary(src.name, frames, n_ids, out, pipe, args.video))

@@ -275,7 +275,12 @@ class SequenceSource(FrameSource):
 
 
 def open_source(path: str | os.PathLike[str]) -> FrameSource:
-    """A video file, a MOTChallenge sequence folder, or a folder of images."""
+    """A video file, a MOTChallenge sequence folder, a folder of images, or a live camera
+    (``rtsp://``, ``http(s)://``, ``/dev/videoN``: ``densepeds.live``)."""
+    from densepeds.live import LiveSource, is_live
+
+    if isinstance(path, str) and is_live(path):
+        return LiveSource(path)
     p = Path(path)
     if not p.exists():
         raise InputError(f"{p}: no such file or folder")
