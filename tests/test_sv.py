@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
+from pathlib import Path
 
+import cv2
 import numpy as np
 import numpy.typing as npt
 import pytest
+from conftest import REPO, shared_path
 from densepeds.errors import InputError
 from densepeds.pipeline import Pipeline
 from densepeds.tracking import Tracker
@@ -161,3 +165,34 @@ def test_supervision_is_not_imported_for_arrays() -> None:
         "assert 'supervision' not in sys.modules\n"
     )
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_the_docs_example_runs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """docs/python-api.md's loop, with a 'detector' reading PETS09's ground truth on a clip."""
+    seq = shared_path("data", "PETS09-S2L1-dev")
+    clip = tmp_path / "clip.avi"
+    cap = cv2.VideoCapture(str(seq / "vtest.avi"))
+    writer = cv2.VideoWriter(str(clip), cv2.VideoWriter_fourcc(*"MJPG"), 7, (768, 576))
+    for _ in range(20):
+        ok, image = cap.read()
+        assert ok
+        writer.write(image)
+    cap.release()
+    writer.release()
+    gt = np.loadtxt(seq / "gt" / "gt.txt", delimiter=",")
+    calls = []
+
+    def detect(frame: npt.NDArray[np.uint8]) -> sv.Detections:
+        calls.append(frame.shape)
+        rows = gt[gt[:, 0] == len(calls)]
+        xyxy = np.c_[rows[:, 2:4], rows[:, 2:4] + rows[:, 4:6]]
+        n = len(rows)
+        return sv.Detections(xyxy, confidence=np.full(n, 0.9), class_id=np.zeros(n, int))
+
+    text = (REPO / "docs" / "python-api.md").read_text(encoding="utf-8")
+    (block,) = re.findall(r"```python\n(.*?)```", text, re.S)
+    exec(compile(block, "docs/python-api.md", "exec"), {"VIDEO": str(clip), "detect": detect})
+    lines = capsys.readouterr().out.splitlines()
+    assert len(calls) == 20 and len(lines) == 2
+    people = len(gt[gt[:, 0] == 20])
+    assert lines[1].startswith(f"frame 20: {people} people (0 hidden), ids ")
