@@ -20,14 +20,16 @@ WHEEL=$(./scripts/build-wheel.sh target/wheels)
 step "installing $(basename "$WHEEL") with the dev, eval and ray extras (numpy, onnxruntime, OpenCV, Ray, ...)"
 python -m pip install -q --force-reinstall --no-deps "$WHEEL"
 python -m pip install -q "$WHEEL[dev,eval,ray]"
-# trackeval without its declared dependencies: they add opencv-python (a second cv2 beside
-# opencv-python-headless), matplotlib and pillow, none of which MOTChallenge scoring uses.
-step "installing trackeval (without its dependencies)"
-python -m pip install -q --no-deps "trackeval>=1.3"
+# trackeval declares opencv-python (a second cv2 beside opencv-python-headless): installed with
+# metadata that requires the headless one instead (densepeds.install_trackeval).
+step "installing trackeval (requiring opencv-python-headless, not a second OpenCV)"
+python -m densepeds.install_trackeval -q
 # The peers (pip install '.[peers]', benchmarks/) pull opencv-python; keep only the headless one.
 if python -m pip show opencv-python >/dev/null 2>&1; then
   step "removing opencv-python (a second cv2 beside opencv-python-headless)"
   python -m pip uninstall -q -y opencv-python
   python -m pip install -q --force-reinstall --no-deps opencv-python-headless
 fi
+step "pip check: every installed requirement met"
+python -m pip check
 step "done: . .venv/bin/activate, then densepeds --help"

@@ -31,7 +31,8 @@ step "fresh venv in $WORK, installing $(basename "$WHEEL") with the eval extra"
 . "$WORK/venv/bin/activate"
 python -m pip install -q --upgrade pip
 python -m pip install -q "$WHEEL[eval]"
-python -m pip install -q --no-deps "trackeval>=1.3"
+python -m densepeds.install_trackeval -q
+python -m pip check
 cd "$WORK"
 unset DENSEPEDS_MODEL_DIR DENSEPEDS_MODEL_URL PYTHONPATH
 export XDG_CACHE_HOME="$WORK/cache"

@@ -301,7 +301,7 @@ def test_eval_help_describes_its_options(capsys: pytest.CaptureFixture[str]) -> 
     assert "--gt SEQ_DIR [SEQ_DIR ...] ground-truth sequence folder(s)" in out
     assert "--format {md,csv,json} output format" in out
     assert "--frames A:B score only frames" in out
-    assert "pip install 'densepeds[eval]' && pip install --no-deps 'trackeval>=1.3'" in out
+    assert "pip install 'densepeds[eval]' && python -m densepeds.install_trackeval" in out
 
 
 def test_speed_says_what_was_timed(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
@@ -397,7 +397,7 @@ def test_eval_without_trackeval_says_what_to_install(
     monkeypatch.setitem(sys.modules, "trackeval", None)  # import fails as if not installed
     rc, _, err = _run(capsys, "eval", "--gt", str(seq), "--tracks", str(tracks))
     _one_line_error(
-        rc, err, "pip install 'densepeds[eval]' && pip install --no-deps 'trackeval>=1.3'"
+        rc, err, "pip install 'densepeds[eval]' && python -m densepeds.install_trackeval"
     )
 
 

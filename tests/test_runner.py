@@ -30,7 +30,7 @@ SETTINGS = [
 def test_every_run_setting_is_a_batch_option_and_reaches_its_jobs(tmp_path: Path) -> None:
     # Every run option that does not name one input's files is declared once and shared.
     assert {o.dest for o in OPTIONS} - {o.dest for o in SHARED} == {
-        "input", "detections", "out", "video", "seed", "scene_frames", "quiet",
+        "input", "detections", "reconnect", "out", "video", "seed", "scene_frames", "quiet",
     }  # fmt: skip
     settings = {f.name for f in fields(RunOptions)}
     assert {o.dest for o in SHARED} == settings - {"params"} | {"param"}

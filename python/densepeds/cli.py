@@ -295,6 +295,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
     parse_frame_range(spec.frames)  # a bad range fails before any work
     if spec.input is None:
         return run_scene(spec)
+    from densepeds.live import is_live
+
+    if is_live(spec.input):
+        from densepeds.runner.live_run import run_live
+
+        return run_live(spec)
     src, pipe, dets, out, rng = engine_open_run(spec)
     frames, n_ids = track_source(spec, pipe, src, out, dets, rng)
     print(summary(src.name, frames, n_ids, out, pipe, spec.video))

@@ -13,8 +13,9 @@ flag is not 0 is a pedestrian.
 1). Without it, tracks that cover fewer frames than the ground truth (e.g. from ``run --frames``)
 are scored against the whole ground truth, and :attr:`EvalResult.warnings` says so.
 
-trackeval is an optional dependency (``pip install 'densepeds[eval]'`` plus trackeval itself
-without its dependencies, which would add a second OpenCV: :data:`INSTALL_HINT`).
+trackeval is an optional dependency (``pip install 'densepeds[eval]'`` plus trackeval itself,
+with metadata that requires the headless OpenCV instead of a second one:
+:mod:`densepeds.install_trackeval`, :data:`INSTALL_HINT`).
 """
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ BENCHMARKS = ("MOT15", "MOT16", "MOT17", "MOT20")
 # trackeval declares opencv-python (the GUI build) as a dependency but scores MOTChallenge boxes
 # without it; installed with its dependencies it would sit beside our opencv-python-headless,
 # both owning cv2. The eval extra holds what trackeval imports; trackeval goes in with --no-deps.
-INSTALL_HINT = "pip install 'densepeds[eval]' && pip install --no-deps 'trackeval>=1.3'"
+INSTALL_HINT = "pip install 'densepeds[eval]' && python -m densepeds.install_trackeval"
 # Ground-truth frames outside the tracks' span beyond which evaluate() warns (a tracker may
 # report nothing in a frame or two at the ends: tracks are confirmed on their 2nd match).
 UNCOVERED_FRAMES_WARN = 2

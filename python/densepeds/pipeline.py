@@ -16,7 +16,7 @@ from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol, cast, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -26,10 +26,14 @@ from densepeds.errors import InputError, ParameterError
 from densepeds.frames import check_frame
 from densepeds.presets import Preset, get_preset, preset_for
 from densepeds.segment import FEATURES as CROP_FEATURES
+from densepeds.sv_adapter import is_sv_detections
 from densepeds.types import Detections
 from densepeds.video import FrameRange, FrameSource, open_source, parse_frame_range
 
 if TYPE_CHECKING:
+    from supervision import Detections as SvDetections
+
+    from densepeds.sv_adapter import SvTracks
     from densepeds.tracking import Tracks
 
 __all__ = [
@@ -247,6 +251,7 @@ class Pipeline:
             raise ParameterError("give tracker parameters or a tracker object, not both")
         self.tracker = tracker
         self.times = StageTimes()
+        self._sv: SvTracks | None = None  # made by the first supervision Detections
 
     @property
     def params(self) -> dict[str, Any]:
@@ -291,6 +296,8 @@ class Pipeline:
         """Forget all tracks (start a new sequence); the models stay loaded, the detector forgets
         what it learnt of the last sequence (e.g. where its people are)."""
         self.tracker.reset()
+        if self._sv is not None:
+            self._sv.reset()
         if self._detector is not None and hasattr(self._detector, "reset"):
             self._detector.reset()
         self.times = StageTimes()
@@ -373,15 +380,45 @@ class Pipeline:
             )
         ]
 
+    @overload
     def step(
         self,
         frame: Image | None = None,
         detections: Detections | None = None,
         embeddings: npt.NDArray[np.float32] | None = None,
-    ) -> Tracks:
+    ) -> Tracks: ...
+
+    @overload
+    def step(
+        self,
+        frame: Image | None,
+        detections: SvDetections,
+        embeddings: npt.NDArray[np.float32] | None = None,
+    ) -> SvDetections: ...
+
+    def step(
+        self,
+        frame: Image | None = None,
+        detections: Detections | SvDetections | None = None,
+        embeddings: npt.NDArray[np.float32] | None = None,
+    ) -> Tracks | SvDetections:
         """Track one frame. Give the frame, its detections, or both (detections win over the
-        detector; appearance features need the frame, or precomputed ``embeddings``)."""
-        tracks = self.process(frame, detections, embeddings)
+        detector; appearance features need the frame, or precomputed ``embeddings``).
+
+        ``detections`` may be a ``supervision.Detections`` (from any detector; its masks, where
+        it has them, shape the segmented re-ID crops): the result is then a new
+        ``sv.Detections`` with ``tracker_id`` and the coasted people (``densepeds.sv_adapter``).
+        """
+        if is_sv_detections(detections):
+            from densepeds.sv_adapter import SvTracks, to_detections
+
+            if self._sv is None:
+                max_age = dict(getattr(self.tracker, "params", {})).get("max_age")
+                self._sv = SvTracks(None if max_age is None else int(max_age))
+            tracks = self.process(frame, to_detections(detections), embeddings)
+            self.times.frames += 1
+            return self._sv.result(detections, tracks)
+        tracks = self.process(frame, cast("Detections | None", detections), embeddings)
         self.times.frames += 1
         return tracks
 

@@ -306,7 +306,7 @@ file already cut at 0.5 and the CNN detectors.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple, cast, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -315,9 +315,11 @@ from densepeds import _core
 from densepeds.errors import InputError
 
 if TYPE_CHECKING:
+    from supervision import Detections as SvDetections
     from typing_extensions import Unpack
 
     from densepeds._core import TrackerKwargs
+    from densepeds.sv_adapter import SvTracks
 
 #: Every parameter's row (name, type, default, range, doc), by name, as declared in Rust.
 PARAMS: dict[str, _core.ParamRow] = {row["name"]: row for row in _core.PARAMS}
@@ -359,18 +361,51 @@ class Tracker:
 
     def __init__(self, motion: str = "frvo", **params: Unpack[TrackerKwargs]) -> None:
         self._core = _core.Tracker(motion, **params)
+        self._sv: SvTracks | None = None  # made by the first supervision Detections
+
+    @overload
+    def update(
+        self, boxes: SvDetections, scores: None = None, embeddings: npt.ArrayLike | None = None
+    ) -> SvDetections: ...
+
+    @overload
+    def update(
+        self, boxes: npt.ArrayLike, scores: npt.ArrayLike, embeddings: npt.ArrayLike | None = None
+    ) -> Tracks: ...
 
     def update(
         self,
-        boxes: npt.ArrayLike,
-        scores: npt.ArrayLike,
+        boxes: npt.ArrayLike | SvDetections,
+        scores: npt.ArrayLike | None = None,
         embeddings: npt.ArrayLike | None = None,
-    ) -> Tracks:
+    ) -> Tracks | SvDetections:
         """One frame: boxes [N, 4] (x1, y1, x2, y2), scores [N], embeddings float32 [N, D] or None.
+
+        Or a ``supervision.Detections`` alone (its ``confidence`` is the score, 1 where it has
+        none), with or without embeddings: returns a new ``sv.Detections`` with ``tracker_id``
+        and the coasted people (``densepeds.sv_adapter`` says how).
 
         Raises InputError for bad shapes, dtypes, NaN/inf, inverted boxes or an embedding
         dimension that differs from earlier frames; the tracker's state is then unchanged.
         """
+        from densepeds.sv_adapter import is_sv_detections
+
+        if is_sv_detections(boxes):
+            from densepeds.sv_adapter import SvTracks, boxes_and_scores
+
+            if scores is not None:
+                raise InputError("give supervision Detections alone: their confidence is the score")
+            if self._sv is None:
+                self._sv = SvTracks(horizon=int(self._core.params["max_age"]))
+            sv_boxes, sv_scores = boxes_and_scores(boxes)
+            return self._sv.result(boxes, self._update(sv_boxes, sv_scores, embeddings))
+        if scores is None:
+            raise InputError("scores are needed with boxes (or give supervision Detections)")
+        return self._update(cast("npt.ArrayLike", boxes), scores, embeddings)
+
+    def _update(
+        self, boxes: npt.ArrayLike, scores: npt.ArrayLike, embeddings: npt.ArrayLike | None
+    ) -> Tracks:
         b = _as_float_array(boxes, "boxes")
         if b.size == 0:
             b = b.reshape(0, 4)
@@ -391,6 +426,8 @@ class Tracker:
     def reset(self) -> None:
         """Forgets all tracks; ids restart at 1."""
         self._core.reset()
+        if self._sv is not None:
+            self._sv.reset()
 
     @property
     def params(self) -> dict[str, str | float | int | bool]:

@@ -151,7 +151,7 @@ class VideoSource(FrameSource):
                 ok, image = cap.read()
                 if not ok or image is None:
                     return
-                yield frame_no, _as_bgr(image)
+                yield frame_no, as_bgr(image)
                 frame_no += 1
         finally:
             cap.release()
@@ -275,7 +275,8 @@ class SequenceSource(FrameSource):
 
 
 def open_source(path: str | os.PathLike[str]) -> FrameSource:
-    """A video file, a MOTChallenge sequence folder, or a folder of images."""
+    """A video file, a MOTChallenge sequence folder, or a folder of images (live cameras:
+    ``densepeds.live.LiveSource``)."""
     p = Path(path)
     if not p.exists():
         raise InputError(f"{p}: no such file or folder")
@@ -292,10 +293,10 @@ def _read_image(path: Path) -> Image:
     image = cv2.imread(str(path), cv2.IMREAD_COLOR)
     if image is None:
         raise InputError(f"{path}: cannot read image")
-    return _as_bgr(image)
+    return as_bgr(image)
 
 
-def _as_bgr(image: npt.NDArray[Any]) -> Image:
+def as_bgr(image: npt.NDArray[Any]) -> Image:
     if image.ndim == 2:
         image = cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
     return np.ascontiguousarray(image[:, :, :3], dtype=np.uint8)

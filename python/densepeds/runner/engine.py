@@ -27,13 +27,14 @@ def open_run(spec: RunSpec, models: Any = None) -> tuple[Any, Any, Any, Path, An
     ``reid(path, reuse=...)`` give loaded models, shared by the inputs of a batch; by default the
     pipeline loads its own.
     """
+    from densepeds.live import LiveSource, is_live
     from densepeds.motio import read_detections, safe_name
     from densepeds.pipeline import Pipeline, default_features
     from densepeds.video import SequenceSource, open_source, parse_frame_range
 
     if spec.input is None:
         raise ParameterError("open_run needs an input (run_scene tracks the built-in scene)")
-    src = open_source(spec.input)
+    src = LiveSource(spec.input, spec.reconnect) if is_live(spec.input) else open_source(spec.input)
     has_images = not isinstance(src, SequenceSource) or src.has_images
     has_own_dets = isinstance(src, SequenceSource) and src.det_path is not None
     detector = spec.detector

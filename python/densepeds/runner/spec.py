@@ -85,14 +85,16 @@ class RunOptions:
 class RunSpec(RunOptions):
     """One tracking run: its input, the settings (:class:`RunOptions`) and its outputs.
 
-    ``input`` None is the built-in scene (``seed``, ``scene_frames``); ``detections``: a det file
-    to track from; ``out``: the tracks file (None: ``out/<input name>.txt``); ``video``: an
-    annotated video to write; ``quiet``: no progress bar.
+    ``input`` None is the built-in scene (``seed``, ``scene_frames``); ``detections``: a det
+    file to track from; ``reconnect``: a live camera's reopening tries; ``out``: the tracks file
+    (None: ``out/<input name>.txt``); ``video``: an annotated video to write; ``quiet``: no
+    progress bar.
     """
 
     # inputs
     input: str | None = None
     detections: str | None = None
+    reconnect: int = 0
     seed: int = 0
     scene_frames: int = 150
     # outputs
@@ -168,7 +170,19 @@ OPTIONS: tuple[Option, ...] = (
         "input",
         nargs="?",
         help="video file, image folder or MOTChallenge sequence folder (seqinfo.ini, img1/ "
-        "and/or det/det.txt); default: the built-in scene",
+        "and/or det/det.txt), or a live camera: rtsp://..., http(s)://..., /dev/videoN (tracks "
+        "written frame by frame; exit code 3 when the stream ends or disconnects); default: the "
+        "built-in scene",
+        shared=False,
+        group="input",
+    ),
+    _option(
+        "--reconnect",
+        metavar="N",
+        type=int,
+        default=0,
+        help="live camera: when the stream ends or stalls, try to open it again up to N times, "
+        "1 s apart; default 0",
         shared=False,
         group="input",
     ),
