@@ -136,15 +136,19 @@ def _model_files(settings: Settings) -> dict[str, Path]:
     """The model files the jobs may load, found here; an explicitly chosen one must exist, a
     default one that is missing is left for the jobs that need it to report."""
     from densepeds.batch_worker import DETECTOR_ROLE, REID_ROLE
-    from densepeds.detect import DEFAULT_MODELS
-    from densepeds.modelfiles import find_model
-    from densepeds.reid import DEFAULT_MODEL
+    from densepeds.modelfiles import (
+        default_detector,
+        default_model_file,
+        default_reid_file,
+        find_model,
+    )
 
     files: dict[str, Path] = {}
+    kind = settings.detector or default_detector(settings.detector_model)
     wanted = [
         (
             DETECTOR_ROLE,
-            settings.detector_model or DEFAULT_MODELS[settings.detector or "yoloseg"],
+            settings.detector_model or default_model_file(kind),
             settings.detector is not None or settings.detector_model is not None,
         )
     ]
@@ -152,7 +156,7 @@ def _model_files(settings: Settings) -> dict[str, Path]:
         wanted.append(
             (
                 REID_ROLE,
-                settings.reid_model or DEFAULT_MODEL,
+                settings.reid_model or default_reid_file(),
                 settings.reid_model is not None or settings.features is not None,
             )
         )

@@ -1,11 +1,12 @@
 """Mask R-CNN in either of two ONNX contracts, recognised from the graph.
 
 - **Model zoo** (the ONNX Model Zoo's ``MaskRCNN-12.onnx`` / ``MaskRCNN-12-int8.onnx``, the
-  detector network the DensePeds paper uses): input ``image`` float32 [3, H, W], BGR 0-255 minus
-  the mean (102.9801, 115.9465, 122.7717), resized here so the short side is about 800 (the long
-  side at most 1333, as the model was trained) and zero-padded to multiples of 32; outputs boxes
-  [N, 4] (x1, y1, x2, y2 in input pixels), labels int64 [N] (COCO, person = 1), scores [N] and
-  masks [N, 1, 28, 28], probabilities inside each box (pasted here into the box, resized).
+  detector network the DensePeds paper uses): input ``image`` float32 [3, H, W], BGR 0-255
+  minus the mean (102.9801, 115.9465, 122.7717), resized here so the short side is about 800
+  (the long side at most 1333, as the model was trained) and zero-padded to multiples of 32;
+  outputs boxes [N, 4] (x1, y1, x2, y2 in input pixels), labels int64 [N] (COCO, person = 1),
+  scores [N] and masks [N, 1, 28, 28], probabilities inside each box (pasted here into the box,
+  resized).
 - **torchvision** (``models/export_maskrcnn.py``): input float32 [3, H, W] RGB in [0, 1] at any
   size (the model resizes internally); masks [N, 1, H, W] probabilities over the whole image.
 

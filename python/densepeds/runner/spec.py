@@ -18,12 +18,13 @@ from densepeds.pipeline import DEFAULT_FEATURES, DETECTORS, FEATURES, MOTIONS
 from densepeds.presets import DEFAULT_PRESET, PRESETS
 
 DETECTOR_MODEL_HELP = (
-    "detector ONNX file (default: the --detector's own model, from $DENSEPEDS_MODEL_DIR or "
-    "the user cache; see `densepeds models`)"
+    "detector ONNX file (default: the first present of the --detector's models, from "
+    "$DENSEPEDS_MODEL_DIR or the user cache; `densepeds models` says which)"
 )
 REID_MODEL_HELP = (
-    "re-ID ONNX file, e.g. an OSNet export (default: osnet_x0_25_msmt17.onnx from "
-    "$DENSEPEDS_MODEL_DIR or the user cache; see `densepeds models`)"
+    "re-ID ONNX file, e.g. an OSNet or YoutuReID export (default: the first present of the "
+    "known re-ID models, from $DENSEPEDS_MODEL_DIR or the user cache; `densepeds models` says "
+    "which)"
 )
 PARAM_HELP = (
     "tracker parameter, e.g. max_age=30 (repeatable; the names are "
@@ -197,8 +198,8 @@ OPTIONS: tuple[Option, ...] = (
     _option(
         "--detector",
         choices=DETECTORS,
-        help="detect people in the frames with this CNN (default: yoloseg where there are "
-        "frames and no det file)",
+        help="detect people in the frames with this CNN (default: where there are frames and no "
+        "det file, the first installed detector; `densepeds models` says which)",
         group="detection",
     ),
     _option("--detector-model", metavar="PATH", help=DETECTOR_MODEL_HELP, group="detection"),
