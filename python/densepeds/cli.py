@@ -17,6 +17,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, NoReturn
 
+from densepeds.detect import DEVICES
 from densepeds.errors import DensePedsError, InputError, ParameterError
 from densepeds.pipeline import DEFAULT_FEATURES, DETECTORS, FEATURES, MOTIONS
 from densepeds.presets import DEFAULT_PRESET, PRESETS, preset_for
@@ -165,6 +166,7 @@ def build_parser() -> argparse.ArgumentParser:
         "re-ID embedding, for up to 4 frames in a row, instead of a new one "
         "(densepeds.reid.ReusePolicy): less re-ID work, the tracks may change",
     )
+    run.add_argument("--device", choices=DEVICES, default="auto", help=DEVICE_HELP)
     run.add_argument(
         "--motion",
         choices=MOTIONS,
@@ -305,6 +307,10 @@ def build_parser() -> argparse.ArgumentParser:
 DETECTOR_MODEL_HELP = (
     "detector ONNX file (default: the --detector's own model, from $DENSEPEDS_MODEL_DIR or "
     "the user cache; see `densepeds models`)"
+)
+DEVICE_HELP = (
+    "where the detector and re-ID models run: auto (default) an NVIDIA GPU where one is usable, "
+    "else the CPU; cpu; cuda a GPU or fail (needs the gpu extra: pip install 'densepeds[gpu]')"
 )
 REID_MODEL_HELP = (
     "re-ID ONNX file, e.g. an OSNet export (default: osnet_x0_25_msmt17.onnx from "
@@ -700,7 +706,7 @@ def open_run(args: argparse.Namespace, models: Any = None) -> tuple[Any, Any, An
     elif reid_reuse:
         from densepeds.reid import ReID
 
-        reid_spec = ReID(args.reid_model, reuse=True)
+        reid_spec = ReID(args.reid_model, reuse=True, device=args.device)
     # The preset follows the detector asked for, also when a batch hands over a loaded one.
     preset = args.preset if args.preset is not None else preset_for(detector).name
     pipe = Pipeline(
@@ -711,6 +717,7 @@ def open_run(args: argparse.Namespace, models: Any = None) -> tuple[Any, Any, An
         detector_model=args.detector_model,
         detector_options=detector_options or None,
         preset=preset,
+        device=args.device,
         **dict(args.param),
     )
     if detector is not None and dets is None:

@@ -29,6 +29,7 @@ POOL_FLOOR = 0.1  # weight of a background cell in mask-weighted pooling (person
 # Crops a thread embeds in one onnxruntime call: memory stays bounded however many people a frame
 # has; the embeddings do not change.
 CROPS_PER_THREAD = 16
+CROPS_PER_GPU_CALL = 128  # on a GPU: a frame's crops in one call
 
 
 @dataclass(frozen=True)
@@ -94,6 +95,7 @@ class ReID:
         input_size: tuple[int, int] | None = None,
         flip: bool = False,
         context: float = 0.0,
+        device: str = "auto",
     ) -> None:
         if batch_size < 1:
             raise ParameterError(f"batch_size must be >= 1, got {batch_size}")
@@ -109,8 +111,9 @@ class ReID:
         self.input_size = input_size
         self.threads = threads
         self.session, self.rewritten = onnxutil.batched_session(
-            path, 1 if threads is None else threads, input_size=input_size
+            path, 1 if threads is None else threads, input_size=input_size, device=device
         )
+        self.device = onnxutil.session_device(self.session)  # later sessions: the same
         inputs = onnxutil.specs(self.session.get_inputs())
         outputs = onnxutil.specs(self.session.get_outputs())
         if len(inputs) != 1 or len(inputs[0].shape) != 4 or len(outputs) < 1:
@@ -179,14 +182,18 @@ class ReID:
                 model = onnxutil.with_dynamic_batch(model)
             pooled, size = onnxutil.with_weighted_final_pool(model)
             threads = 1 if self.threads is None else self.threads
-            self._pooled = (onnxutil.make_session(pooled, threads), size)
+            self._pooled = (onnxutil.make_session(pooled, threads, device=self.device), size)
         return self._pooled
 
     def _run(
         self, batch_bgr: npt.NDArray[np.uint8], weights: npt.NDArray[np.float32] | None = None
     ) -> npt.NDArray[np.float32]:
-        """Embeddings of the crops, at most ``CROPS_PER_THREAD`` per thread at a time."""
-        most = CROPS_PER_THREAD * (self.threads or onnxutil.available_cpus())
+        """Embeddings of the crops, at most ``CROPS_PER_THREAD`` per thread (on a GPU
+        ``CROPS_PER_GPU_CALL``) at a time."""
+        if self.device != "cpu":
+            most = CROPS_PER_GPU_CALL
+        else:
+            most = CROPS_PER_THREAD * (self.threads or onnxutil.available_cpus())
         if len(batch_bgr) > most:
             parts = [
                 self._run(
@@ -200,7 +207,7 @@ class ReID:
         if weights is not None:
             session, _ = self._pooled_session()
             feed[onnxutil.POOL_WEIGHTS] = weights
-        if self.threads is None:
+        if self.threads is None and self.device == "cpu":
             out = split_batch.run_split(session, feed)[0]
         else:
             out = session.run(None, feed)[0]

@@ -16,6 +16,8 @@ class Detector(Protocol):
 
 
 DETECTOR_KINDS = ("yoloseg", "maskrcnn")
+# Where models run (densepeds.detect.onnxutil.providers): a GPU where usable, the CPU, a GPU.
+DEVICES = ("auto", "cpu", "cuda")
 DEFAULT_MODELS = {"yoloseg": "yolov8n-seg-320-int8.onnx", "maskrcnn": "maskrcnn_resnet50_fpn.onnx"}
 
 
@@ -54,4 +56,4 @@ def make_detector(
     return MaskRCNNDetector(path, tiles=grid, threads=threads, **extra)  # type: ignore[arg-type]
 
 
-__all__ = ["DETECTOR_KINDS", "Detector", "make_detector"]
+__all__ = ["DETECTOR_KINDS", "DEVICES", "Detector", "make_detector"]

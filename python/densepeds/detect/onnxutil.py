@@ -1,4 +1,11 @@
-"""onnxruntime sessions on CPU, and dynamic-batch copies of fixed-batch models.
+"""onnxruntime sessions on the CPU or a GPU, and dynamic-batch copies of fixed-batch models.
+
+Every session is made here, on the execution providers :func:`providers` picks for the device
+asked for (``densepeds.detect.DEVICES``): ``cpu`` onnxruntime's CPU provider; ``cuda`` NVIDIA's
+CUDA provider (TensorRT's first where that is installed), which needs the ``gpu`` extra
+(``onnxruntime-gpu`` in place of ``onnxruntime``) and a usable GPU, else a
+:class:`~densepeds.errors.ParameterError` saying so; ``auto`` the GPU where one is usable, else
+the CPU (a :class:`DeviceWarning` where a GPU provider is installed but cannot run).
 
 Batching all tiles (or all crops) into one call saves the per-call overhead and lets onnxruntime
 parallelise over the batch; a model exported with batch fixed to 1 is rewritten once, in memory.
@@ -21,6 +28,7 @@ import contextlib
 import hashlib
 import os
 import platform
+import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass
 from functools import cache
@@ -30,12 +38,88 @@ from typing import TYPE_CHECKING
 import numpy as np
 import onnxruntime as ort
 
+from densepeds.detect import DEVICES
 from densepeds.errors import ModelError, ParameterError
 
 if TYPE_CHECKING:
     import onnx
 
 BATCH_DIM = "batch"
+
+CPU_PROVIDER = "CPUExecutionProvider"
+CUDA_PROVIDER = "CUDAExecutionProvider"
+TENSORRT_PROVIDER = "TensorrtExecutionProvider"
+GPU_HINT = (
+    "install the gpu extra (pip install 'densepeds[gpu]': onnxruntime-gpu in place of "
+    "onnxruntime) on a machine with an NVIDIA GPU, its driver and CUDA"
+)
+
+
+class DeviceWarning(UserWarning):
+    """``device="auto"``: a GPU provider is installed but cannot run; the CPU runs instead."""
+
+
+def check_device(device: str) -> str:
+    if device not in DEVICES:
+        raise ParameterError(f"device must be one of {', '.join(DEVICES)}, got {device!r}")
+    return device
+
+
+def providers(device: str) -> list[str]:
+    """The execution providers a session on ``device`` asks for, best first (the CPU last:
+    onnxruntime runs there what the GPU's providers cannot). ``cuda`` without onnxruntime's CUDA
+    provider is a ParameterError; ``auto`` then gives the CPU alone."""
+    check_device(device)
+    if device == "cpu":
+        return [CPU_PROVIDER]
+    available = ort.get_available_providers()
+    if CUDA_PROVIDER not in available:
+        if device == "cuda":
+            raise ParameterError(
+                f"device cuda: this onnxruntime ({ort.__version__}) has no CUDA provider; "
+                + GPU_HINT
+            )
+        return [CPU_PROVIDER]
+    gpu = [p for p in (TENSORRT_PROVIDER, CUDA_PROVIDER) if p in available]
+    return [*gpu, CPU_PROVIDER]
+
+
+def on_gpu(session: ort.InferenceSession) -> bool:
+    """Whether ``session`` runs on a GPU provider (the CPU's runs only what they cannot)."""
+    return session.get_providers()[0] != CPU_PROVIDER
+
+
+def session_device(session: ort.InferenceSession) -> str:
+    """The device ``session`` runs on, as a later session of the same model should ask for it."""
+    return "cuda" if on_gpu(session) else "cpu"
+
+
+def _provider_options(names: list[str]) -> list[str | tuple[str, dict[str, str]]]:
+    """TensorRT builds an engine per input shape: kept on disk beside the optimised graphs."""
+    folder = ort_cache_dir()
+    if TENSORRT_PROVIDER not in names or folder is None:
+        return list(names)
+    trt = {"trt_engine_cache_enable": "True", "trt_engine_cache_path": str(folder / "tensorrt")}
+    return [(n, trt) if n == TENSORRT_PROVIDER else n for n in names]
+
+
+def _new_session(
+    data: str | bytes, options: ort.SessionOptions, device: str
+) -> ort.InferenceSession:
+    """A session on ``device``'s providers; where a GPU was asked for and onnxruntime could not
+    start it (no driver, no CUDA libraries, no GPU), ``cuda`` is a ParameterError and ``auto``
+    warns once per session and runs on the CPU."""
+    names = providers(device)
+    session = ort.InferenceSession(data, sess_options=options, providers=_provider_options(names))
+    if names[0] != CPU_PROVIDER and not on_gpu(session):
+        message = (
+            f"onnxruntime lists {names[0]} but could not start it (no usable GPU, driver or "
+            f"CUDA libraries); {GPU_HINT}"
+        )
+        if device == "cuda":
+            raise ParameterError(f"device cuda: {message}")
+        warnings.warn(f"device auto runs on the CPU: {message}", DeviceWarning, stacklevel=3)
+    return session
 
 
 @dataclass(frozen=True)
@@ -83,22 +167,29 @@ def session_options(threads: int | None) -> ort.SessionOptions:
 
 
 def make_session(
-    model: onnx.ModelProto | Path, threads: int | None, *, save_optimised: Path | None = None
+    model: onnx.ModelProto | Path,
+    threads: int | None,
+    *,
+    device: str = "auto",
+    save_optimised: Path | None = None,
 ) -> ort.InferenceSession:
-    """A CPU session for ``model``; ``save_optimised`` also writes onnxruntime's optimised graph
-    there (atomically; where it cannot be written the session is made without it)."""
+    """A session for ``model`` on ``device`` (see :func:`providers`); ``save_optimised`` (CPU
+    sessions) also writes onnxruntime's optimised graph there (atomically; where it cannot be
+    written the session is made without it)."""
     data = str(model) if isinstance(model, Path) else model.SerializeToString()
     # The shipped int8 export makes onnxruntime's default logger warn about a deprecated
     # attribute at every load; that is noise to a user, so only errors are logged.
     ort.set_default_logger_severity(3)
     options = session_options(threads)
-    if save_optimised is not None:
+    if save_optimised is not None and providers(device) == [CPU_PROVIDER]:
         session = _session_saving(data, options, save_optimised)
         if session is not None:
             return session
         options = session_options(threads)
     try:
-        return ort.InferenceSession(data, sess_options=options, providers=["CPUExecutionProvider"])
+        return _new_session(data, options, device)
+    except ParameterError:
+        raise
     except Exception as exc:
         raise ModelError(f"onnxruntime cannot load the model: {exc}") from exc
 
@@ -111,9 +202,7 @@ def _session_saving(
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         options.optimized_model_filepath = str(tmp)
-        session = ort.InferenceSession(
-            data, sess_options=options, providers=["CPUExecutionProvider"]
-        )
+        session = ort.InferenceSession(data, sess_options=options, providers=[CPU_PROVIDER])
         os.replace(tmp, target)
         prune_cache(target.parent, ORT_CACHE_KEEP)
         return session
@@ -185,9 +274,7 @@ def _cached_session(file: Path, threads: int | None) -> ort.InferenceSession | N
     options = session_options(threads)
     options.graph_optimization_level = ort.GraphOptimizationLevel.ORT_DISABLE_ALL
     try:
-        session = ort.InferenceSession(
-            str(file), sess_options=options, providers=["CPUExecutionProvider"]
-        )
+        session = ort.InferenceSession(str(file), sess_options=options, providers=[CPU_PROVIDER])
     except Exception:  # a damaged file (e.g. a full disk): made again
         return None
     with contextlib.suppress(OSError):
@@ -308,16 +395,20 @@ def batched_session(
     dequantize: bool = False,
     input_size: tuple[int, int] | None = None,
     anchors: bool = False,
+    device: str = "auto",
 ) -> tuple[ort.InferenceSession, bool]:
-    """A session accepting any batch size, and whether the model had to be rewritten for it.
+    """A session on ``device`` accepting any batch size, and whether the model had to be
+    rewritten for it.
 
     ``dequantize`` runs a float copy of a QDQ-quantised model (see :func:`dequantized`);
     ``input_size`` (height, width) resizes the model's input (``anchors``: a detector whose
-    anchor grid must follow; see :func:`with_input_size`).
+    anchor grid must follow; see :func:`with_input_size`). Only CPU sessions use the cache of
+    optimised graphs (a GPU provider's optimised graph holds nodes only it runs).
     """
     anchors = anchors and input_size is not None
     recipe = f"batched dequantize={dequantize} input_size={input_size} anchors={anchors}"
-    target = optimised_file(path, recipe, threads)
+    cpu = providers(device) == [CPU_PROVIDER]
+    target = optimised_file(path, recipe, threads) if cpu else None
     if target is not None:
         session = _cached_session(target, threads)
         if session is not None:
@@ -333,10 +424,10 @@ def batched_session(
         model = with_dynamic_batch(model)
     if target is None:
         unchanged = not (rewritten or dequantize)  # else the rewritten model, not the file
-        return make_session(path if unchanged else model, threads), rewritten
+        return make_session(path if unchanged else model, threads, device=device), rewritten
     entry = model.metadata_props.add()
     entry.key, entry.value = REWRITTEN_KEY, str(int(rewritten))
-    return make_session(model, threads, save_optimised=target), rewritten
+    return make_session(model, threads, device=device, save_optimised=target), rewritten
 
 
 METADATA_FIELD = (
