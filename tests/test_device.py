@@ -9,6 +9,7 @@ go to it in one call, with the CPU's outputs.
 
 from __future__ import annotations
 
+import os
 import warnings
 from pathlib import Path
 from typing import Any
@@ -179,3 +180,57 @@ def test_on_a_gpu_a_frames_views_and_crops_go_in_one_call(
     assert _GpuLike.calls == [9]
     np.testing.assert_array_equal(got.boxes, expected_dets.boxes)
     np.testing.assert_allclose(rows, expected_rows, atol=1e-5)
+
+
+# --- a batch worker's share of the CPUs -------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("cpus", "inputs", "workers", "threads", "expected"),
+    [
+        (2, 4, None, None, (2, 1)),  # every CPU a worker of its own
+        (2, 1, None, None, (1, 2)),  # one input: one worker on both CPUs, as `run`
+        (2, 4, 1, None, (1, 2)),  # --workers 1: the worker gets every CPU
+        (16, 3, None, None, (3, 5)),
+        (2, 4, None, 2, (1, 2)),
+        (8, 100, None, None, (8, 1)),
+        (2, 4, 3, None, (3, 1)),  # more workers than CPUs asked for: one thread each
+    ],
+)
+def test_default_workers_and_threads_fill_the_cpus(
+    cpus: int, inputs: int, workers: int | None, threads: int | None, expected: tuple[int, int]
+) -> None:
+    from densepeds.batch import worker_shape
+
+    assert worker_shape(cpus, inputs, workers, threads) == expected
+
+
+def test_a_worker_sizes_its_sessions_for_its_cpus(
+    monkeypatch: pytest.MonkeyPatch, models: tuple[Path, Path]
+) -> None:
+    from densepeds import batch_worker
+    from densepeds.detect import split_batch
+
+    monkeypatch.setattr(onnxutil, "_cpu_limit", None)
+    monkeypatch.setattr(batch_worker, "_LOADED", {})
+    monkeypatch.setattr(os, "sched_getaffinity", lambda _pid: {0, 1, 2, 3}, raising=False)
+    assert onnxutil.available_cpus() == 4
+    batch_worker.use_cpus(2)
+    assert onnxutil.available_cpus() == 2
+    assert onnxutil.session_options(None).intra_op_num_threads == 2
+    # The worker's models split their batches over its 2 CPUs, as `run` does on a 2-CPU machine.
+    reid = batch_worker.WorkerModels({}, 2).reid(str(models[1]))
+    assert reid.threads is None
+    parts: list[int] = []
+    real = split_batch.run_split
+
+    def counting(session: Any, feed: Any) -> Any:
+        out = real(session, feed)
+        parts.append(onnxutil.available_cpus())
+        return out
+
+    monkeypatch.setattr(split_batch, "run_split", counting)
+    reid.embed_crops([np.zeros((100, 40, 3), np.uint8)] * 6)
+    assert parts == [2]
+    with pytest.raises(ParameterError):
+        onnxutil.limit_cpus(0)

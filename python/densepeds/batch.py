@@ -53,7 +53,7 @@ class BatchResult:
     seconds: float  # wall time of the whole call, Ray's start included
     start_seconds: float  # starting or joining Ray and shipping the models
     workers: int | None
-    threads: int
+    threads: int | None  # None: nothing ran
 
     @property
     def failed(self) -> list[JobRecord]:
@@ -178,15 +178,17 @@ def run(
     video: bool = False,
     fill_gaps: int = 0,
     workers: int | None = None,
-    threads: int = 1,
+    threads: int | None = None,
     address: str | None = None,
     progress: Callable[[JobRecord, int, int, float], None] | None = None,
 ) -> BatchResult:
     """Track every input on Ray and return the records (see the module's docstring).
 
     The tracking options are ``densepeds run``'s. ``workers``: inputs tracked at once (default:
-    this machine's CPUs / ``threads`` for a local Ray; as many as the cluster's CPUs allow with an
-    address); ``threads``: CPUs per worker (onnxruntime, OpenCV and motion threads).
+    this machine's CPUs / ``threads`` for a local Ray, at most one per input; as many as the
+    cluster's CPUs allow with an address); ``threads``: CPUs per worker (onnxruntime, OpenCV and
+    motion threads; default: this machine's CPUs / the workers, so that a single worker runs as
+    ``densepeds run`` does and more share the CPUs).
     ``progress(record, done, total, frames_per_second)`` is called as each input finishes.
     Raises DensePedsError for a bad option or input list before any job runs; a failing input
     only fails its own record.
@@ -202,7 +204,7 @@ def run(
         video=video,
         fill_gaps=fill_gaps,
     )
-    if threads < 1:
+    if threads is not None and threads < 1:
         raise ParameterError(f"threads must be >= 1, got {threads}")
     if workers is not None and workers < 1:
         raise ParameterError(f"workers must be >= 1, got {workers}")
@@ -220,7 +222,7 @@ def run(
         from densepeds.batch_ray import execute, session
         from densepeds.detect.onnxutil import available_cpus
 
-        local_workers = workers or max(1, available_cpus() // threads)
+        local_workers, threads = worker_shape(available_cpus(), len(todo), workers, threads)
         counter = {"done": 0, "frames": 0}
         with session(address, local_workers * threads) as ray:
             start_seconds = time.perf_counter() - start
@@ -248,6 +250,16 @@ def run(
     )
     write_json_atomic(prep.out_dir / SUMMARY_FILE, result.to_json())
     return result
+
+
+def worker_shape(
+    cpus: int, inputs: int, workers: int | None, threads: int | None
+) -> tuple[int, int]:
+    """(workers, CPUs per worker) on a machine with ``cpus`` for ``inputs`` inputs, each given
+    or chosen so that the workers use every CPU: as many workers as inputs up to the CPUs /
+    ``threads``, then the CPUs shared among them."""
+    workers = workers or max(1, min(inputs, cpus // (threads or 1)))
+    return workers, threads or max(1, cpus // workers)
 
 
 # --- command line ---------------------------------------------------------------------------
@@ -290,7 +302,12 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
         help="inputs at once (default: CPUs / --threads locally; the cluster's CPUs with "
         "--address)",
     )
-    p.add_argument("--threads", type=int, default=1, metavar="N", help="CPUs per worker")
+    p.add_argument(
+        "--threads",
+        type=int,
+        metavar="N",
+        help="CPUs per worker (default: this machine's CPUs / the workers)",
+    )
     p.add_argument(
         "--address",
         metavar="HOST:PORT",

@@ -4,8 +4,8 @@ that reach each node once and stay loaded in the worker for its next inputs.
 The job builds the ``run`` command's options for its input and calls the same functions as
 ``densepeds run`` (``cli.open_run`` then ``cli._track_source``), so its tracks are those of
 ``densepeds run INPUT --out NAME.txt`` with the same options. Only the thread counts differ:
-onnxruntime, OpenCV and the motion step use the worker's CPU share, which leaves the results
-unchanged.
+onnxruntime, OpenCV and the motion step use the worker's CPU share (:func:`use_cpus`), which
+leaves the results unchanged.
 """
 
 from __future__ import annotations
@@ -61,9 +61,22 @@ def node_cache_dir() -> Path:
     return Path(tempfile.gettempdir()) / f"densepeds-batch-models-{os.getuid()}" / node
 
 
+def use_cpus(threads: int) -> None:
+    """Size this worker's threads for the ``threads`` CPUs it was given, as ``densepeds run``
+    sizes them for a machine with that many: onnxruntime splits each batch in one part per CPU
+    (``densepeds.detect.split_batch``; Ray's ``OMP_NUM_THREADS=1`` does not reach onnxruntime's
+    own thread pools), and OpenCV runs that many threads."""
+    import cv2
+
+    from densepeds.detect import onnxutil
+
+    onnxutil.limit_cpus(threads)
+    cv2.setNumThreads(threads)
+
+
 class WorkerModels:
-    """The ``models`` argument of ``cli.open_run``: loads each model once per worker process,
-    with ``threads`` onnxruntime threads, from the node's copy of the driver's file."""
+    """The ``models`` argument of ``cli.open_run``: loads each model once per worker process
+    (sized for its CPUs by :func:`use_cpus`), from the node's copy of the driver's file."""
 
     def __init__(self, shipped: dict[str, ShippedModel], threads: int | None) -> None:
         self.shipped = shipped
@@ -106,16 +119,14 @@ class WorkerModels:
         path = self._file(DETECTOR_ROLE, given)
         return self._load(
             (DETECTOR_ROLE, kind, path, self.threads),
-            lambda: make_detector(kind, path, threads=self.threads),
+            lambda: make_detector(kind, path),
         )
 
     def reid(self, given: str | None) -> Any:
         from densepeds.reid import ReID
 
         path = self._file(REID_ROLE, given)
-        model = self._load(
-            (REID_ROLE, path, self.threads), lambda: ReID(path, threads=self.threads)
-        )
+        model = self._load((REID_ROLE, path, self.threads), lambda: ReID(path))
         model.reset()  # nothing carries over from the previous input
         return model
 
@@ -162,9 +173,7 @@ def run_job(
     _remove_partial_outputs(job)
     write_record(job, record)
     if threads is not None:
-        import cv2
-
-        cv2.setNumThreads(threads)
+        use_cpus(threads)
     models = WorkerModels(shipped, threads)
     try:
         args = run_args(settings, job, threads)

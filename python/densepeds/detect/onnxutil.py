@@ -138,12 +138,27 @@ def load_model(path: Path) -> onnx.ModelProto:
         raise ModelError(f"{path} is not a readable ONNX model: {exc}") from exc
 
 
+_cpu_limit: int | None = None  # limit_cpus: this process's share of the CPUs
+
+
 def available_cpus() -> int:
-    """CPUs this process may run on (``taskset``/cgroup affinity), not all the machine has."""
+    """CPUs this process may run on (``taskset``/cgroup affinity), not all the machine has; at
+    most the share :func:`limit_cpus` gave it."""
     try:
-        return max(1, len(os.sched_getaffinity(0)))
+        cpus = max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
+        cpus = os.cpu_count() or 1
+    return cpus if _cpu_limit is None else min(cpus, _cpu_limit)
+
+
+def limit_cpus(cpus: int | None) -> None:
+    """This process runs on ``cpus`` of the CPUs it may use (None: all of them), as a batch
+    worker given that share: sessions then split their batches and size their thread counts
+    for that many, as ``densepeds run`` does for a machine of that size."""
+    global _cpu_limit
+    if cpus is not None and cpus < 1:
+        raise ParameterError(f"cpus must be >= 1 or None, got {cpus}")
+    _cpu_limit = cpus
 
 
 def session_options(threads: int | None) -> ort.SessionOptions:
