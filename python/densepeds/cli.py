@@ -21,6 +21,7 @@ from densepeds.detect import DEVICES
 from densepeds.errors import DensePedsError, InputError, ParameterError
 from densepeds.pipeline import DEFAULT_FEATURES, DETECTORS, FEATURES, MOTIONS
 from densepeds.presets import DEFAULT_PRESET, PRESETS, preset_for
+from densepeds.speed import SPEEDS, get_speed
 
 EXIT_USAGE = 2
 EXIT_INTERRUPT = 130  # 128 + SIGINT, as shells report Ctrl-C
@@ -133,10 +134,11 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--detector-model", metavar="PATH", help=DETECTOR_MODEL_HELP)
     run.add_argument(
         "--tiles",
-        metavar="auto|CxR|none",
+        metavar="auto|grid|CxR|none",
         help="the CNN detector's views of a frame: auto (default) tiles that follow the people "
         "(at most twice the fixed grid's views); CxR a fixed grid of overlapping tiles, e.g. 3x2 "
-        "(faster, fewer people found in crowds); none the whole frame in one view",
+        "(faster, fewer people found in crowds), grid the one chosen for the frame size (3x2 "
+        "at most); none the whole frame in one view",
     )
     run.add_argument(
         "--full-scan-every",
@@ -156,6 +158,13 @@ def build_parser() -> argparse.ArgumentParser:
         "shape, its longer side S times their height (more people found in dense crowds, "
         "slower there); 0 turns it off; default: "
         "the detector's own (YoloSegDetector's focus_scale)",
+    )
+    run.add_argument(
+        "--speed",
+        choices=SPEEDS,
+        help="a measured point on the speed/accuracy curve, setting the yoloseg detector's "
+        "--tiles, --full-scan-every, --focus-lost and int8 copy (options given win; "
+        "docs/speed.md): " + "; ".join(p.describe() for p in SPEEDS.values()),
     )
     run.add_argument("--reid-model", metavar="PATH", help=REID_MODEL_HELP)
     run.add_argument(
@@ -662,6 +671,17 @@ def open_run(args: argparse.Namespace, models: Any = None) -> tuple[Any, Any, An
         raise ParameterError(
             f"--features {features} needs frames, and {args.input} has none (use --features none)"
         )
+    speed = getattr(args, "speed", None)
+    if speed is not None:
+        if detector != "yoloseg" or args.detections is not None:
+            raise ParameterError(
+                f"--speed {speed} sets the yoloseg detector, and this run does not detect with it "
+                "(add --detector yoloseg to detect)"
+            )
+        profile = get_speed(speed)
+        for name in ("tiles", "full_scan_every", "focus_lost"):  # where the user gave none
+            if getattr(args, name, None) is None:
+                setattr(args, name, getattr(profile, name))
     tiles = getattr(args, "tiles", None)
     if tiles is not None and (detector is None or args.detections is not None):
         raise ParameterError(
@@ -689,6 +709,8 @@ def open_run(args: argparse.Namespace, models: Any = None) -> tuple[Any, Any, An
         )
         if value is not None
     }
+    if speed is not None:
+        detector_options["quantized"] = get_speed(speed).int8
     reid_reuse = getattr(args, "reid_reuse", False)
     if reid_reuse and features == "none":
         raise ParameterError(

@@ -117,7 +117,8 @@ class YoloSegDetector:
     frames (``densepeds.detect.tiling.PeopleTiles``; ``auto_grid``'s fixed grid until enough
     are seen): bands of square tiles sized so that a person there spans ``person_share`` of
     the input, magnified at most ``max_scale``, at most ``max_tiles`` views a frame and at most
-    twice the fixed grid's (``tiling.GRID_MULTIPLE``); a fixed grid is given as "CxR".
+    twice the fixed grid's (``tiling.GRID_MULTIPLE``); a fixed grid is given as "CxR", or
+    ``"grid"`` for the one ``tiling.auto_grid`` chooses for the frame size.
     ``full_scan_every=k`` (default 1: every frame) runs all of those tiles (or the fixed
     grid's) on every k-th frame only, and on the frames between just views of the people found
     in the last k frames (``tiling.SkipSchedule``): windows of the tiles' sizes placed over
