@@ -234,3 +234,29 @@ def test_a_worker_sizes_its_sessions_for_its_cpus(
     assert parts == [2]
     with pytest.raises(ParameterError):
         onnxutil.limit_cpus(0)
+
+
+def test_batch_workers_ask_ray_for_a_share_of_the_gpus() -> None:
+    from densepeds.batch_ray import gpu_share
+
+    assert gpu_share("cpu", 2, 4) == 0.0
+    assert gpu_share("auto", 0, 4) == 0.0  # no GPU in the cluster: the CPUs
+    assert gpu_share("auto", 1, 4) == 0.25  # four workers share one GPU
+    assert gpu_share("cuda", 4, 2) == 1.0  # at most a whole GPU each
+    with pytest.raises(ParameterError, match="device cuda: the Ray cluster has no GPU"):
+        gpu_share("cuda", 0, 2)
+
+
+def test_batch_device_reaches_the_workers_models(
+    monkeypatch: pytest.MonkeyPatch, models: tuple[Path, Path]
+) -> None:
+    from densepeds import batch_worker
+    from densepeds.batch import run
+
+    monkeypatch.setattr(batch_worker, "_LOADED", {})
+    fake_available(monkeypatch, [CUDA, CPU])
+    spy = _Spy(monkeypatch)
+    reid = batch_worker.WorkerModels({}, 1, "cpu").reid(str(models[1]))
+    assert reid.device == "cpu" and spy.asked and all(p == [CPU] for p in spy.asked)
+    with pytest.raises(ParameterError, match="device must be one of"):
+        run(["x.mp4"], "out", device="gpu")

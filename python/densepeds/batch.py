@@ -179,6 +179,7 @@ def run(
     fill_gaps: int = 0,
     workers: int | None = None,
     threads: int | None = None,
+    device: str = "auto",
     address: str | None = None,
     progress: Callable[[JobRecord, int, int, float], None] | None = None,
 ) -> BatchResult:
@@ -188,7 +189,8 @@ def run(
     this machine's CPUs / ``threads`` for a local Ray, at most one per input; as many as the
     cluster's CPUs allow with an address); ``threads``: CPUs per worker (onnxruntime, OpenCV and
     motion threads; default: this machine's CPUs / the workers, so that a single worker runs as
-    ``densepeds run`` does and more share the CPUs).
+    ``densepeds run`` does and more share the CPUs); ``device``: where the models run (as
+    ``run --device``; with a GPU, the workers share the cluster's GPUs).
     ``progress(record, done, total, frames_per_second)`` is called as each input finishes.
     Raises DensePedsError for a bad option or input list before any job runs; a failing input
     only fails its own record.
@@ -204,6 +206,9 @@ def run(
         video=video,
         fill_gaps=fill_gaps,
     )
+    from densepeds.detect.onnxutil import check_device
+
+    check_device(device)
     if threads is not None and threads < 1:
         raise ParameterError(f"threads must be >= 1, got {threads}")
     if workers is not None and workers < 1:
@@ -236,7 +241,15 @@ def run(
                     progress(record, counter["done"], len(todo), rate)
 
             for record in execute(
-                ray, todo, settings, prep.settings_hash, prep.models, threads, workers, on_done
+                ray,
+                todo,
+                settings,
+                prep.settings_hash,
+                prep.models,
+                threads,
+                workers,
+                on_done,
+                device,
             ):
                 records[Path(record.input)] = record
     result = BatchResult(
@@ -267,7 +280,8 @@ def worker_shape(
 
 def add_parser(sub: Any) -> argparse.ArgumentParser:
     """Add ``batch`` to the ``densepeds`` command's subparsers."""
-    from densepeds.cli import _add_param_option
+    from densepeds.cli import DEVICE_HELP, _add_param_option
+    from densepeds.detect import DEVICES
 
     p = sub.add_parser(
         "batch",
@@ -308,6 +322,7 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
         metavar="N",
         help="CPUs per worker (default: this machine's CPUs / the workers)",
     )
+    p.add_argument("--device", choices=DEVICES, default="auto", help=DEVICE_HELP)
     p.add_argument(
         "--address",
         metavar="HOST:PORT",
@@ -342,6 +357,7 @@ def cmd_batch(args: argparse.Namespace) -> int:
         args.out,
         workers=args.workers,
         threads=args.threads,
+        device=args.device,
         address=args.address,
         progress=progress,
         **options,

@@ -78,9 +78,12 @@ class WorkerModels:
     """The ``models`` argument of ``cli.open_run``: loads each model once per worker process
     (sized for its CPUs by :func:`use_cpus`), from the node's copy of the driver's file."""
 
-    def __init__(self, shipped: dict[str, ShippedModel], threads: int | None) -> None:
+    def __init__(
+        self, shipped: dict[str, ShippedModel], threads: int | None, device: str = "auto"
+    ) -> None:
         self.shipped = shipped
         self.threads = threads
+        self.device = device
         self.load_seconds = 0.0
         self.fetched: list[str] = []
 
@@ -118,15 +121,17 @@ class WorkerModels:
 
         path = self._file(DETECTOR_ROLE, given)
         return self._load(
-            (DETECTOR_ROLE, kind, path, self.threads),
-            lambda: make_detector(kind, path),
+            (DETECTOR_ROLE, kind, path, self.threads, self.device),
+            lambda: make_detector(kind, path, device=self.device),
         )
 
     def reid(self, given: str | None) -> Any:
         from densepeds.reid import ReID
 
         path = self._file(REID_ROLE, given)
-        model = self._load((REID_ROLE, path, self.threads), lambda: ReID(path))
+        model = self._load(
+            (REID_ROLE, path, self.threads, self.device), lambda: ReID(path, device=self.device)
+        )
         model.reset()  # nothing carries over from the previous input
         return model
 
@@ -159,6 +164,7 @@ def run_job(
     settings_hash: str,
     shipped: dict[str, ShippedModel],
     threads: int | None = None,
+    device: str = "auto",
 ) -> JobRecord:
     """Track one input into its outputs and write its record; a bad input gives a ``failed``
     record with the one-line error (never an exception)."""
@@ -174,7 +180,7 @@ def run_job(
     write_record(job, record)
     if threads is not None:
         use_cpus(threads)
-    models = WorkerModels(shipped, threads)
+    models = WorkerModels(shipped, threads, device)
     try:
         args = run_args(settings, job, threads)
         src, pipe, dets, out, rng = open_run(args, models)
