@@ -47,3 +47,32 @@ def test_osnet_agrees_on_a_batch_of_crops() -> None:
     crops = runtime_speed.reid_crops(runtime_speed.first_frame(), reid)
     assert len(crops) == runtime_speed.CROPS
     _agree(reid.path, {reid.input_name: crops}, 1e-4)
+
+
+def test_device_openvino_detects_and_embeds_as_onnxruntime() -> None:
+    """The package's own models on OpenVINO (``device="openvino"``): the same detections on a
+    real frame (boxes within a hundredth of a pixel) and the same embeddings."""
+    from densepeds.detect.yoloseg import YoloSegDetector
+
+    detector = shared_path("models", "yolov8n-seg-320-int8.onnx")
+    frame = runtime_speed.first_frame()
+    cpu, ov = (YoloSegDetector(detector, device=d) for d in ("cpu", "openvino"))
+    assert (cpu.device, ov.device) == ("cpu", "openvino")
+    expected, got = cpu(frame), ov(frame)
+    assert len(expected) > 10 and len(got) == len(expected)
+    np.testing.assert_allclose(got.boxes, expected.boxes, atol=1e-2)
+    np.testing.assert_allclose(got.scores, expected.scores, atol=1e-4)
+    reid_file = shared_path("models", "osnet_x0_25_msmt17.onnx")
+    cpu_reid, ov_reid = (ReID(reid_file, device=d) for d in ("cpu", "openvino"))
+    crops = [frame[y : y + 150, x : x + 60] for y in (0, 200) for x in range(0, 900, 100)]
+    np.testing.assert_allclose(
+        ov_reid.embed_crops(crops), cpu_reid.embed_crops(crops), rtol=0, atol=1e-4
+    )
+
+
+def test_device_openvino_without_openvino_is_one_line(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(sys.modules, "openvino", None)  # import fails
+    from densepeds.errors import ParameterError
+
+    with pytest.raises(ParameterError, match=r"pip install 'densepeds\[openvino\]'"):
+        ReID(shared_path("models", "osnet_x0_25_msmt17.onnx"), device="openvino")

@@ -107,7 +107,7 @@ def gpu_share(device: str, gpus: float, tasks: int) -> float:
     """The GPUs each task asks Ray for: a GPU device's share of the cluster's ``gpus`` among
     the ``tasks`` run at once (Ray hides the GPUs from a task that asks for none), else none.
     ``cuda`` on a cluster without GPUs is a ParameterError."""
-    if device == "cpu" or gpus <= 0:
+    if device in ("cpu", "openvino") or gpus <= 0:
         if device == "cuda":
             raise ParameterError("device cuda: the Ray cluster has no GPU")
         return 0.0

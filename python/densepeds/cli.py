@@ -319,7 +319,8 @@ DETECTOR_MODEL_HELP = (
 )
 DEVICE_HELP = (
     "where the detector and re-ID models run: auto (default) an NVIDIA GPU where one is usable, "
-    "else the CPU; cpu; cuda a GPU or fail (needs the gpu extra: pip install 'densepeds[gpu]')"
+    "else the CPU; cpu; cuda a GPU or fail (needs the gpu extra: pip install 'densepeds[gpu]'); "
+    "openvino the CPU through OpenVINO's runtime (pip install 'densepeds[openvino]')"
 )
 REID_MODEL_HELP = (
     "re-ID ONNX file, e.g. an OSNet export (default: osnet_x0_25_msmt17.onnx from "

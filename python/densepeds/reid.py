@@ -81,7 +81,8 @@ class ReID:
     crop's and its mirror's embeddings (twice the work);
     ``context``: crops grow by this fraction of the box's width and height on each side. Both
     are off by default: neither raised the tracked HOTA on the real videos
-    (``benchmarks/results/reid-quality.md``).
+    (``benchmarks/results/reid-quality.md``). ``device`` (``densepeds.detect.DEVICES``):
+    where the model runs (as ``YoloSegDetector``'s); ``device`` (attribute) is where it runs.
     """
 
     def __init__(
@@ -111,7 +112,10 @@ class ReID:
         self.input_size = input_size
         self.threads = threads
         self.session, self.rewritten = onnxutil.batched_session(
-            path, 1 if threads is None else threads, input_size=input_size, device=device
+            path,
+            onnxutil.session_threads(threads, device),
+            input_size=input_size,
+            device=device,
         )
         self.device = onnxutil.session_device(self.session)  # later sessions: the same
         inputs = onnxutil.specs(self.session.get_inputs())
@@ -181,7 +185,7 @@ class ReID:
             if onnxutil.has_fixed_batch(model) or self.input_size is not None:
                 model = onnxutil.with_dynamic_batch(model)
             pooled, size = onnxutil.with_weighted_final_pool(model)
-            threads = 1 if self.threads is None else self.threads
+            threads = onnxutil.session_threads(self.threads, self.device)
             self._pooled = (onnxutil.make_session(pooled, threads, device=self.device), size)
         return self._pooled
 
@@ -190,7 +194,7 @@ class ReID:
     ) -> npt.NDArray[np.float32]:
         """Embeddings of the crops, at most ``CROPS_PER_THREAD`` per thread (on a GPU
         ``CROPS_PER_GPU_CALL``) at a time."""
-        if self.device != "cpu":
+        if self.device == "cuda":
             most = CROPS_PER_GPU_CALL
         else:
             most = CROPS_PER_THREAD * (self.threads or onnxutil.available_cpus())

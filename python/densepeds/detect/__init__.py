@@ -16,8 +16,9 @@ class Detector(Protocol):
 
 
 DETECTOR_KINDS = ("yoloseg", "maskrcnn")
-# Where models run (densepeds.detect.onnxutil.providers): a GPU where usable, the CPU, a GPU.
-DEVICES = ("auto", "cpu", "cuda")
+# Where models run (densepeds.detect.onnxutil): a GPU where usable, the CPU, a GPU, the CPU
+# through OpenVINO.
+DEVICES = ("auto", "cpu", "cuda", "openvino")
 DEFAULT_MODELS = {"yoloseg": "yolov8n-seg-320-int8.onnx", "maskrcnn": "maskrcnn_resnet50_fpn.onnx"}
 
 

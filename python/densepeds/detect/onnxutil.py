@@ -5,7 +5,10 @@ asked for (``densepeds.detect.DEVICES``): ``cpu`` onnxruntime's CPU provider; ``
 CUDA provider (TensorRT's first where that is installed), which needs the ``gpu`` extra
 (``onnxruntime-gpu`` in place of ``onnxruntime``) and a usable GPU, else a
 :class:`~densepeds.errors.ParameterError` saying so; ``auto`` the GPU where one is usable, else
-the CPU (a :class:`DeviceWarning` where a GPU provider is installed but cannot run).
+the CPU (a :class:`DeviceWarning` where a GPU provider is installed but cannot run);
+``openvino`` the CPU through OpenVINO's runtime (:class:`OpenVinoSession`; ``pip install
+openvino``), whose outputs on the shipped models are onnxruntime's to float rounding
+(``tests/test_runtime.py``).
 
 Batching all tiles (or all crops) into one call saves the per-call overhead and lets onnxruntime
 parallelise over the batch; a model exported with batch fixed to 1 is rewritten once, in memory.
@@ -29,7 +32,7 @@ import hashlib
 import os
 import platform
 import warnings
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
@@ -49,6 +52,7 @@ BATCH_DIM = "batch"
 CPU_PROVIDER = "CPUExecutionProvider"
 CUDA_PROVIDER = "CUDAExecutionProvider"
 TENSORRT_PROVIDER = "TensorrtExecutionProvider"
+OPENVINO_HINT = "device openvino needs OpenVINO: pip install 'densepeds[openvino]'"
 GPU_HINT = (
     "install the gpu extra (pip install 'densepeds[gpu]': onnxruntime-gpu in place of "
     "onnxruntime) on a machine with an NVIDIA GPU, its driver and CUDA"
@@ -70,7 +74,7 @@ def providers(device: str) -> list[str]:
     onnxruntime runs there what the GPU's providers cannot). ``cuda`` without onnxruntime's CUDA
     provider is a ParameterError; ``auto`` then gives the CPU alone."""
     check_device(device)
-    if device == "cpu":
+    if device in ("cpu", "openvino"):  # OpenVINO's sessions take no onnxruntime providers
         return [CPU_PROVIDER]
     available = ort.get_available_providers()
     if CUDA_PROVIDER not in available:
@@ -84,14 +88,88 @@ def providers(device: str) -> list[str]:
     return [*gpu, CPU_PROVIDER]
 
 
-def on_gpu(session: ort.InferenceSession) -> bool:
+def on_gpu(session: ort.InferenceSession | OpenVinoSession) -> bool:
     """Whether ``session`` runs on a GPU provider (the CPU's runs only what they cannot)."""
-    return session.get_providers()[0] != CPU_PROVIDER
+    return session.get_providers()[0] in (CUDA_PROVIDER, TENSORRT_PROVIDER)
 
 
-def session_device(session: ort.InferenceSession) -> str:
+def session_device(session: ort.InferenceSession | OpenVinoSession) -> str:
     """The device ``session`` runs on, as a later session of the same model should ask for it."""
+    if isinstance(session, OpenVinoSession):
+        return "openvino"
     return "cuda" if on_gpu(session) else "cpu"
+
+
+def session_threads(threads: int | None, device: str) -> int | None:
+    """The threads of a model's session where its batches are split one part per CPU when
+    ``threads`` is None (:mod:`densepeds.detect.split_batch`: one thread each); OpenVINO runs
+    each batch whole, on every CPU (None)."""
+    return threads if threads is not None or device == "openvino" else 1
+
+
+@dataclass(frozen=True)
+class _Arg:
+    name: str
+    shape: tuple[int | str, ...]
+    type: str
+
+
+_OV_TYPES = {"f32": "tensor(float)", "u8": "tensor(uint8)", "i64": "tensor(int64)"}
+
+
+class OpenVinoSession:
+    """The part of onnxruntime's ``InferenceSession`` this package calls, run by OpenVINO on the
+    CPU: ``run(None, feed)`` (from several threads at once: one request per call),
+    ``get_inputs``, ``get_outputs`` and ``get_providers``. Precision is held at f32, so that
+    the outputs are onnxruntime's to float rounding (OpenVINO would otherwise pick bf16 on CPUs
+    that have it); ``threads`` None uses every CPU."""
+
+    PROVIDER = "OpenVINO"
+
+    def __init__(self, data: str | bytes, threads: int | None) -> None:
+        try:
+            import openvino as ov
+        except ImportError as err:
+            raise ParameterError(OPENVINO_HINT) from err
+        self.threads = threads or available_cpus()
+        config = {
+            "INFERENCE_NUM_THREADS": self.threads,
+            "PERFORMANCE_HINT": "LATENCY",
+            "INFERENCE_PRECISION_HINT": "f32",
+        }
+        try:
+            core = ov.Core()
+            self._compiled = core.compile_model(core.read_model(data), "CPU", config)
+        except Exception as exc:  # OpenVINO raises its own RuntimeError types
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            raise ModelError(f"OpenVINO cannot load the model: {first}") from exc
+        self._inputs = [self._arg(p, k) for k, p in enumerate(self._compiled.inputs)]
+        self._outputs = [self._arg(p, k) for k, p in enumerate(self._compiled.outputs)]
+
+    @staticmethod
+    def _arg(port: object, index: int) -> _Arg:
+        shape = port.get_partial_shape()  # type: ignore[attr-defined]
+        dims = tuple(
+            d.get_length() if d.is_static else f"dim{index}_{k}" for k, d in enumerate(shape)
+        )
+        kind = port.get_element_type().get_type_name()  # type: ignore[attr-defined]
+        return _Arg(port.get_any_name(), dims, _OV_TYPES.get(kind, kind))  # type: ignore[attr-defined]
+
+    def get_inputs(self) -> list[_Arg]:
+        return list(self._inputs)
+
+    def get_outputs(self) -> list[_Arg]:
+        return list(self._outputs)
+
+    def get_providers(self) -> list[str]:
+        return [self.PROVIDER]
+
+    def run(self, names: list[str] | None, feed: Mapping[str, np.ndarray]) -> list[np.ndarray]:
+        request = self._compiled.create_infer_request()
+        result = request.infer(dict(feed))
+        wanted = [a.name for a in self._outputs] if names is None else names
+        by_name = {a.name: k for k, a in enumerate(self._outputs)}
+        return [np.array(result[self._compiled.outputs[by_name[n]]]) for n in wanted]
 
 
 def _provider_options(names: list[str]) -> list[str | tuple[str, dict[str, str]]]:
@@ -192,6 +270,8 @@ def make_session(
     sessions) also writes onnxruntime's optimised graph there (atomically; where it cannot be
     written the session is made without it)."""
     data = str(model) if isinstance(model, Path) else model.SerializeToString()
+    if device == "openvino":
+        return OpenVinoSession(data, threads)  # type: ignore[return-value]
     # The shipped int8 export makes onnxruntime's default logger warn about a deprecated
     # attribute at every load; that is noise to a user, so only errors are logged.
     ort.set_default_logger_severity(3)
@@ -422,7 +502,7 @@ def batched_session(
     """
     anchors = anchors and input_size is not None
     recipe = f"batched dequantize={dequantize} input_size={input_size} anchors={anchors}"
-    cpu = providers(device) == [CPU_PROVIDER]
+    cpu = device != "openvino" and providers(device) == [CPU_PROVIDER]
     target = optimised_file(path, recipe, threads) if cpu else None
     if target is not None:
         session = _cached_session(target, threads)

@@ -149,10 +149,10 @@ class YoloSegDetector:
     leave-one-out on the four video cells (benchmarks/results/focus.md, which also has its
     cost in views).
 
-    ``device`` (``auto``, ``cpu``, ``cuda``; :func:`densepeds.detect.onnxutil.providers`)
+    ``device`` (``densepeds.detect.DEVICES``; :mod:`densepeds.detect.onnxutil`)
     chooses where the model runs; on a GPU a frame's views run in one call (at most
-    ``VIEWS_PER_GPU_CALL``) and ``threads`` only sets the CPU's share. ``device`` (attribute)
-    is where it runs.
+    ``VIEWS_PER_GPU_CALL``) and ``threads`` only sets the CPU's share; ``openvino`` runs each
+    batch in one call on ``threads`` (None: every CPU). ``device`` (attribute) is where it runs.
     """
 
     def __init__(
@@ -203,7 +203,10 @@ class YoloSegDetector:
         self._input_size: tuple[int, int] | None = None  # None: the model's own
         self._unfit: set[tuple[int, int]] = set()  # sizes the model cannot be given
         self.session, self.rewritten = onnxutil.batched_session(
-            self.path, 1 if threads is None else threads, dequantize=self.dequantize, device=device
+            self.path,
+            onnxutil.session_threads(threads, device),
+            dequantize=self.dequantize,
+            device=device,
         )
         self.device = onnxutil.session_device(self.session)  # later sessions: the same
         self._wide: ort.InferenceSession | None = None
@@ -300,14 +303,14 @@ class YoloSegDetector:
         ``VIEWS_PER_THREAD`` per thread, so that the frame's memory stays bounded however
         many views it has (the input, the activations and the raw predictions of one part);
         on a GPU ``VIEWS_PER_GPU_CALL``."""
-        if self.device != "cpu":
+        if self.device == "cuda":
             return VIEWS_PER_GPU_CALL
         return VIEWS_PER_THREAD * (self.threads or onnxutil.available_cpus())
 
     def _run_views(self, x: npt.NDArray[np.float32]) -> list[np.ndarray]:
         """The model on a batch of views: with ``threads`` None split one part per CPU where
         the views divide evenly, else one call on every CPU; with ``threads`` one call on that
-        many threads; on a GPU one call."""
+        many threads; on a GPU or with OpenVINO one call."""
         feed = {self.input_name: x}
         if self.threads is not None or self.device != "cpu":
             return list(self.session.run(None, feed))
@@ -343,7 +346,7 @@ class YoloSegDetector:
         try:
             session, self.rewritten = onnxutil.batched_session(
                 self.path,
-                1 if self.threads is None else self.threads,
+                onnxutil.session_threads(self.threads, self.device),
                 dequantize=self.dequantize,
                 input_size=wanted,
                 anchors=True,
