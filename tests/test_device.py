@@ -28,8 +28,13 @@ from densepeds.reid import ReID
 CPU, CUDA, TRT = "CPUExecutionProvider", "CUDAExecutionProvider", "TensorrtExecutionProvider"
 
 
-def fake_available(monkeypatch: pytest.MonkeyPatch, names: list[str]) -> None:
+def fake_available(
+    monkeypatch: pytest.MonkeyPatch, names: list[str], tensorrt: bool = True
+) -> None:
+    """onnxruntime lists ``names``; TensorRT's library is found where ``tensorrt``."""
     monkeypatch.setattr(ort, "get_available_providers", lambda: list(names))
+    monkeypatch.setattr(onnxutil, "tensorrt_installed", lambda: tensorrt)
+    monkeypatch.setattr(onnxutil, "_preload_gpu_libraries", lambda: None)
 
 
 @pytest.mark.parametrize(
@@ -44,6 +49,7 @@ def fake_available(monkeypatch: pytest.MonkeyPatch, names: list[str]) -> None:
         ([CPU, CUDA, TRT], "cuda", [TRT, CUDA, CPU]),  # best first, whatever the listing's order
         ([TRT, CPU], "auto", [CPU]),  # TensorRT's provider needs CUDA's
         (["AzureExecutionProvider", CPU], "auto", [CPU]),
+        ([CPU], "openvino", [CPU]),  # OpenVINO's sessions are not onnxruntime's
     ],
 )
 def test_providers_follow_the_device_and_what_is_installed(
@@ -51,6 +57,8 @@ def test_providers_follow_the_device_and_what_is_installed(
 ) -> None:
     fake_available(monkeypatch, available)
     assert onnxutil.providers(device) == expected
+    fake_available(monkeypatch, available, tensorrt=False)  # listed, but not installed
+    assert onnxutil.providers(device) == [p for p in expected if p != TRT]
 
 
 def test_cuda_without_a_cuda_provider_is_one_clear_line(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -260,3 +268,17 @@ def test_batch_device_reaches_the_workers_models(
     assert reid.device == "cpu" and spy.asked and all(p == [CPU] for p in spy.asked)
     with pytest.raises(ParameterError, match="device must be one of"):
         run(["x.mp4"], "out", device="gpu")
+
+
+def test_gpu_libraries_load_before_a_gpu_session_only(
+    monkeypatch: pytest.MonkeyPatch, models: tuple[Path, Path]
+) -> None:
+    fake_available(monkeypatch, [CUDA, CPU])
+    _Spy(monkeypatch)
+    loads: list[int] = []
+    monkeypatch.setattr(onnxutil, "_preload_gpu_libraries", lambda: loads.append(1))
+    onnxutil.make_session(models[1], 1, device="cpu")
+    assert loads == []
+    with pytest.warns(onnxutil.DeviceWarning):
+        onnxutil.make_session(models[1], 1, device="auto")
+    assert loads == [1]

@@ -2,8 +2,9 @@
 
 Every session is made here, on the execution providers :func:`providers` picks for the device
 asked for (``densepeds.detect.DEVICES``): ``cpu`` onnxruntime's CPU provider; ``cuda`` NVIDIA's
-CUDA provider (TensorRT's first where that is installed), which needs the ``gpu`` extra
-(``onnxruntime-gpu`` in place of ``onnxruntime``) and a usable GPU, else a
+CUDA provider (TensorRT's first where TensorRT's library is installed), which needs the ``gpu``
+extra (``onnxruntime-gpu`` in place of ``onnxruntime``, with NVIDIA's CUDA and cuDNN wheels, which
+``onnxruntime.preload_dlls`` loads) and a usable GPU, else a
 :class:`~densepeds.errors.ParameterError` saying so; ``auto`` the GPU where one is usable, else
 the CPU (a :class:`DeviceWarning` where a GPU provider is installed but cannot run);
 ``openvino`` the CPU through OpenVINO's runtime (:class:`OpenVinoSession`; ``pip install
@@ -54,8 +55,8 @@ CUDA_PROVIDER = "CUDAExecutionProvider"
 TENSORRT_PROVIDER = "TensorrtExecutionProvider"
 OPENVINO_HINT = "device openvino needs OpenVINO: pip install 'densepeds[openvino]'"
 GPU_HINT = (
-    "install the gpu extra (pip install 'densepeds[gpu]': onnxruntime-gpu in place of "
-    "onnxruntime) on a machine with an NVIDIA GPU, its driver and CUDA"
+    "install the gpu extra (pip uninstall onnxruntime; pip install 'densepeds[gpu]') on a "
+    "machine with an NVIDIA GPU and its driver"
 )
 
 
@@ -84,8 +85,30 @@ def providers(device: str) -> list[str]:
                 + GPU_HINT
             )
         return [CPU_PROVIDER]
-    gpu = [p for p in (TENSORRT_PROVIDER, CUDA_PROVIDER) if p in available]
-    return [*gpu, CPU_PROVIDER]
+    # onnxruntime-gpu lists TensorRT's provider whether or not TensorRT is installed.
+    trt = [TENSORRT_PROVIDER] if TENSORRT_PROVIDER in available and tensorrt_installed() else []
+    return [*trt, CUDA_PROVIDER, CPU_PROVIDER]
+
+
+@cache
+def tensorrt_installed() -> bool:
+    """Whether TensorRT's library can be found (the system's, or the ``tensorrt`` wheels')."""
+    import ctypes.util
+    import importlib.util
+
+    if ctypes.util.find_library("nvinfer") is not None:
+        return True
+    return any(importlib.util.find_spec(m) is not None for m in ("tensorrt", "tensorrt_libs"))
+
+
+@cache
+def _preload_gpu_libraries() -> None:
+    """Load the CUDA and cuDNN libraries of NVIDIA's wheels (the gpu extra), where this
+    onnxruntime can (``onnxruntime.preload_dlls``, 1.21 on); else the system's are used."""
+    preload = getattr(ort, "preload_dlls", None)
+    if preload is not None:
+        with contextlib.suppress(Exception):  # none there: the system's, or no GPU session
+            preload()
 
 
 def on_gpu(session: ort.InferenceSession | OpenVinoSession) -> bool:
@@ -188,6 +211,8 @@ def _new_session(
     start it (no driver, no CUDA libraries, no GPU), ``cuda`` is a ParameterError and ``auto``
     warns once per session and runs on the CPU."""
     names = providers(device)
+    if names[0] != CPU_PROVIDER:
+        _preload_gpu_libraries()
     session = ort.InferenceSession(data, sess_options=options, providers=_provider_options(names))
     if names[0] != CPU_PROVIDER and not on_gpu(session):
         message = (
