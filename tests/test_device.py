@@ -282,3 +282,21 @@ def test_gpu_libraries_load_before_a_gpu_session_only(
     with pytest.warns(onnxutil.DeviceWarning):
         onnxutil.make_session(models[1], 1, device="auto")
     assert loads == [1]
+
+
+def test_run_device_cuda_without_a_gpu_is_one_line(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from densepeds.cli import main
+
+    fake_available(monkeypatch, [CPU])  # as onnxruntime's CPU build, whatever is installed here
+    video = shared_path("data", "PETS09-S2L1-dev", "vtest.avi")
+    out = tmp_path / "t.txt"
+    rc = main(["run", str(video), "--frames", "1:2", "-q", "--device", "cuda", "--out", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "device cuda" in err[0] and "densepeds[gpu]" in err[0]
+    assert not out.exists()
+    assert (
+        main(["run", str(video), "--frames", "1:2", "-q", "--device", "cpu", "--out", str(out)])
+        == 0
+    )
