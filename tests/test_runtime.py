@@ -76,3 +76,24 @@ def test_device_openvino_without_openvino_is_one_line(monkeypatch: pytest.Monkey
 
     with pytest.raises(ParameterError, match=r"pip install 'densepeds\[openvino\]'"):
         ReID(shared_path("models", "osnet_x0_25_msmt17.onnx"), device="openvino")
+
+
+def test_openvino_leaves_the_threads_signal_stack_as_it_was() -> None:
+    """OpenVINO gives the thread that compiles a model an alternate signal stack of its own and
+    frees it with the model; a Ctrl-C handled afterwards would run on freed memory (a crash of
+    the whole process), so the session puts the thread's own back."""
+    import ctypes
+    import gc
+
+    def stack() -> tuple[int, int, int]:
+        st = onnxutil._StackT()
+        assert ctypes.CDLL(None).sigaltstack(None, ctypes.byref(st)) == 0
+        return (st.sp or 0, st.flags, st.size)
+
+    before = stack()
+    reid = ReID(shared_path("models", "osnet_x0_25_msmt17.onnx"), device="openvino")
+    reid.embed_crops([np.zeros((100, 40, 3), np.uint8)])
+    assert stack() == before
+    del reid
+    gc.collect()
+    assert stack() == before

@@ -29,6 +29,7 @@ only where a model is rewritten.
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import hashlib
 import os
 import platform
@@ -162,7 +163,8 @@ class OpenVinoSession:
         }
         try:
             core = ov.Core()
-            self._compiled = core.compile_model(core.read_model(data), "CPU", config)
+            with _own_signal_stack():
+                self._compiled = core.compile_model(core.read_model(data), "CPU", config)
         except Exception as exc:  # OpenVINO raises its own RuntimeError types
             first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
             raise ModelError(f"OpenVINO cannot load the model: {first}") from exc
@@ -193,6 +195,29 @@ class OpenVinoSession:
         wanted = [a.name for a in self._outputs] if names is None else names
         by_name = {a.name: k for k, a in enumerate(self._outputs)}
         return [np.array(result[self._compiled.outputs[by_name[n]]]) for n in wanted]
+
+
+class _StackT(ctypes.Structure):
+    _fields_ = (("sp", ctypes.c_void_p), ("flags", ctypes.c_int), ("size", ctypes.c_size_t))
+
+
+@contextlib.contextmanager
+def _own_signal_stack() -> Iterator[None]:
+    """Put the calling thread's alternate signal stack back after the block. OpenVINO's CPU
+    plugin gives the thread that compiles a model a stack of its own and frees it with the
+    model; Python runs its signal handlers on the alternate stack, so a Ctrl-C after such a
+    model is gone would crash the process (tests/test_runtime.py)."""
+    before = _StackT()
+    try:
+        sigaltstack = ctypes.CDLL(None).sigaltstack
+        saved = sigaltstack(None, ctypes.byref(before)) == 0
+    except (OSError, AttributeError, TypeError):  # no C library to ask (not POSIX)
+        saved = False
+    try:
+        yield
+    finally:
+        if saved:
+            sigaltstack(ctypes.byref(before), None)
 
 
 def _provider_options(names: list[str]) -> list[str | tuple[str, dict[str, str]]]:
