@@ -91,26 +91,10 @@ def ort_runner(model: Path, feed: dict[str, np.ndarray], threads: int, ep: str |
 
 
 def ov_runner(model: Path, feed: dict[str, np.ndarray], threads: int) -> Runner:
-    import openvino as ov
-
-    core = ov.Core()
-    compiled = core.compile_model(
-        core.read_model(str(model)),
-        "CPU",
-        {
-            "INFERENCE_NUM_THREADS": threads,
-            "PERFORMANCE_HINT": "LATENCY",
-            "INFERENCE_PRECISION_HINT": "f32",
-        },
-    )
-    request = compiled.create_infer_request()
-    names = [o.get_any_name() for o in compiled.outputs]
-
-    def run() -> list[np.ndarray]:
-        result = request.infer(feed)
-        return [np.array(result[compiled.output(n)]) for n in names]
-
-    return run
+    """OpenVINO's runtime as ``densepeds run --device openvino`` runs it (f32, a request per
+    call: ``onnxutil.OpenVinoSession``)."""
+    session = onnxutil.OpenVinoSession(str(model), threads)
+    return lambda: session.run(None, feed)
 
 
 def timed(run: Runner, repeats: int) -> float:
