@@ -54,7 +54,7 @@ class BatchResult:
     seconds: float  # wall time of the whole call, Ray's start included
     start_seconds: float  # starting or joining Ray and shipping the models
     workers: int | None
-    threads: int
+    threads: int | None  # None: nothing ran
 
     @property
     def failed(self) -> list[JobRecord]:
@@ -175,7 +175,7 @@ def run(
     settings: Settings | None = None,
     *,
     workers: int | None = None,
-    threads: int = 1,
+    threads: int | None = None,
     address: str | None = None,
     progress: Callable[[JobRecord, int, int, float], None] | None = None,
     **options: Any,
@@ -184,18 +184,24 @@ def run(
 
     The tracking options are ``densepeds run``'s: ``settings``, or as keywords ``options`` the
     fields of :class:`densepeds.batch_plan.Settings` (those of densepeds.runner.RunOptions,
-    ``params`` a mapping of tracker parameters, and ``video``). ``workers``: inputs tracked at
-    once (default: this machine's CPUs / ``threads`` for a local Ray; as many as the cluster's
-    CPUs allow with an address); ``threads``: CPUs per worker (onnxruntime, OpenCV and motion
-    threads). ``progress(record, done, total, frames_per_second)`` is called as each input
-    finishes. Raises DensePedsError for a bad option or input list before any job runs; a
-    failing input only fails its own record.
+    ``device`` included: where the models run, as ``run --device``, with a GPU the workers share
+    the cluster's GPUs; ``params`` a mapping of tracker parameters, and ``video``).
+    ``workers``: inputs tracked at once (default: this machine's CPUs / ``threads`` for a local
+    Ray, at most one per input; as many as the cluster's CPUs allow with an address);
+    ``threads``: CPUs per worker (onnxruntime, OpenCV and motion threads; default: this
+    machine's CPUs / the workers, so that a single worker runs as ``densepeds run`` does and
+    more share the CPUs). ``progress(record, done, total, frames_per_second)`` is called as
+    each input finishes. Raises DensePedsError for a bad option or input list before any job
+    runs; a failing input only fails its own record.
     """
     if settings is None:
         settings = Settings.make(**options)
     elif options:
         raise ParameterError("give settings or options, not both")
-    if threads < 1:
+    from densepeds.detect.onnxutil import check_device
+
+    check_device(settings.device)
+    if threads is not None and threads < 1:
         raise ParameterError(f"threads must be >= 1, got {threads}")
     if workers is not None and workers < 1:
         raise ParameterError(f"workers must be >= 1, got {workers}")
@@ -213,7 +219,7 @@ def run(
         from densepeds.batch_ray import execute, session
         from densepeds.detect.onnxutil import available_cpus
 
-        local_workers = workers or max(1, available_cpus() // threads)
+        local_workers, threads = worker_shape(available_cpus(), len(todo), workers, threads)
         counter = {"done": 0, "frames": 0}
         with session(address, local_workers * threads) as ray:
             start_seconds = time.perf_counter() - start
@@ -227,7 +233,15 @@ def run(
                     progress(record, counter["done"], len(todo), rate)
 
             for record in execute(
-                ray, todo, settings, prep.settings_hash, prep.models, threads, workers, on_done
+                ray,
+                todo,
+                settings,
+                prep.settings_hash,
+                prep.models,
+                threads,
+                workers,
+                on_done,
+                settings.device,
             ):
                 records[Path(record.input)] = record
     result = BatchResult(
@@ -241,6 +255,16 @@ def run(
     )
     write_json_atomic(prep.out_dir / SUMMARY_FILE, result.to_json())
     return result
+
+
+def worker_shape(
+    cpus: int, inputs: int, workers: int | None, threads: int | None
+) -> tuple[int, int]:
+    """(workers, CPUs per worker) on a machine with ``cpus`` for ``inputs`` inputs, each given
+    or chosen so that the workers use every CPU: as many workers as inputs up to the CPUs /
+    ``threads``, then the CPUs shared among them."""
+    workers = workers or max(1, min(inputs, cpus // (threads or 1)))
+    return workers, threads or max(1, cpus // workers)
 
 
 # --- command line ---------------------------------------------------------------------------
@@ -273,7 +297,12 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
         help="inputs at once (default: CPUs / --threads locally; the cluster's CPUs with "
         "--address)",
     )
-    p.add_argument("--threads", type=int, default=1, metavar="N", help="CPUs per worker")
+    p.add_argument(
+        "--threads",
+        type=int,
+        metavar="N",
+        help="CPUs per worker (default: this machine's CPUs / the workers)",
+    )
     p.add_argument(
         "--address",
         metavar="HOST:PORT",

@@ -1,8 +1,9 @@
 """Ray as a batch's engine: a local Ray on this machine, or an existing cluster by address.
 
-Each input is one Ray task that asks for ``threads`` CPUs, so Ray runs as many at once as the
-nodes have CPUs for; a task is never retried by Ray (a worker that dies fails its input, which
-the next run of the batch redoes).
+Each input is one Ray task that asks for ``threads`` CPUs (and, for a GPU device, a share of the
+cluster's GPUs: :func:`gpu_share`), so Ray runs as many at once as the nodes have CPUs for; a
+task is never retried by Ray (a worker that dies fails its input, which the next run of the batch
+redoes).
 """
 
 from __future__ import annotations
@@ -97,8 +98,20 @@ def _task(
     settings_hash: str,
     shipped: dict[str, ShippedModel],
     threads: int,
+    device: str,
 ) -> JobRecord:
-    return run_job(job, settings, settings_hash, shipped, threads)
+    return run_job(job, settings, settings_hash, shipped, threads, device)
+
+
+def gpu_share(device: str, gpus: float, tasks: int) -> float:
+    """The GPUs each task asks Ray for: a GPU device's share of the cluster's ``gpus`` among
+    the ``tasks`` run at once (Ray hides the GPUs from a task that asks for none), else none.
+    ``cuda`` on a cluster without GPUs is a ParameterError."""
+    if device in ("cpu", "openvino") or gpus <= 0:
+        if device == "cuda":
+            raise ParameterError("device cuda: the Ray cluster has no GPU")
+        return 0.0
+    return min(1.0, gpus / max(1, tasks))
 
 
 def execute(
@@ -110,11 +123,14 @@ def execute(
     threads: int,
     workers: int | None,
     on_done: Callable[[JobRecord], None],
+    device: str = "auto",
 ) -> list[JobRecord]:
-    """Run every job on Ray, at most ``workers`` at once (None: as many as the CPUs allow);
-    ``on_done`` is called as each finishes. Records come back in the jobs' order."""
+    """Run every job on Ray, at most ``workers`` at once (None: as many as the CPUs allow), its
+    models on ``device``; ``on_done`` is called as each finishes. Records come back in the
+    jobs' order."""
+    gpus = gpu_share(device, ray.cluster_resources().get("GPU", 0), workers or len(jobs))
     shipped = ship_models(ray, models)
-    task = ray.remote(num_cpus=threads, max_retries=0)(_task)
+    task = ray.remote(num_cpus=threads, num_gpus=gpus, max_retries=0)(_task)
     waiting = list(jobs)
     running: dict[Any, Job] = {}
     done: dict[Path, JobRecord] = {}
@@ -123,7 +139,7 @@ def execute(
         while waiting or running:
             while waiting and len(running) < limit:
                 job = waiting.pop(0)
-                ref = task.remote(job, settings, settings_hash, shipped, threads)
+                ref = task.remote(job, settings, settings_hash, shipped, threads, device)
                 running[ref] = job
             ready, _ = ray.wait(list(running), num_returns=1)
             for ref in ready:

@@ -4,8 +4,8 @@ that reach each node once and stay loaded in the worker for its next inputs.
 The job builds the run of its input (a densepeds.runner.RunSpec) and calls the same functions as
 ``densepeds run`` (``runner.open_run`` then ``runner.track_source``), so its tracks are those of
 ``densepeds run INPUT --out NAME.txt`` with the same options. Only the thread counts differ:
-onnxruntime, OpenCV and the motion step use the worker's CPU share, which leaves the results
-unchanged.
+onnxruntime, OpenCV and the motion step use the worker's CPU share (:func:`use_cpus`), which
+leaves the results unchanged.
 """
 
 from __future__ import annotations
@@ -62,13 +62,29 @@ def node_cache_dir() -> Path:
     return Path(tempfile.gettempdir()) / f"densepeds-batch-models-{os.getuid()}" / node
 
 
-class WorkerModels:
-    """The ``models`` argument of ``runner.open_run``: loads each model once per worker process,
-    with ``threads`` onnxruntime threads, from the node's copy of the driver's file."""
+def use_cpus(threads: int) -> None:
+    """Size this worker's threads for the ``threads`` CPUs it was given, as ``densepeds run``
+    sizes them for a machine with that many: onnxruntime splits each batch in one part per CPU
+    (``densepeds.detect.split_batch``; Ray's ``OMP_NUM_THREADS=1`` does not reach onnxruntime's
+    own thread pools), and OpenCV runs that many threads."""
+    import cv2
 
-    def __init__(self, shipped: dict[str, ShippedModel], threads: int | None) -> None:
+    from densepeds.detect import onnxutil
+
+    onnxutil.limit_cpus(threads)
+    cv2.setNumThreads(threads)
+
+
+class WorkerModels:
+    """The ``models`` argument of ``runner.open_run``: loads each model once per worker process
+    (sized for its CPUs by :func:`use_cpus`), from the node's copy of the driver's file."""
+
+    def __init__(
+        self, shipped: dict[str, ShippedModel], threads: int | None, device: str = "auto"
+    ) -> None:
         self.shipped = shipped
         self.threads = threads
+        self.device = device
         self.load_seconds = 0.0
         self.fetched: list[str] = []
 
@@ -106,8 +122,8 @@ class WorkerModels:
 
         path = self._file(DETECTOR_ROLE, given)
         return self._load(
-            (DETECTOR_ROLE, kind, path, self.threads, *sorted(options.items())),
-            lambda: make_detector(kind, path, threads=self.threads, **options),
+            (DETECTOR_ROLE, kind, path, self.threads, self.device, *sorted(options.items())),
+            lambda: make_detector(kind, path, device=self.device, **options),
         )
 
     def reid(self, given: str | None, reuse: bool = False) -> Any:
@@ -115,8 +131,8 @@ class WorkerModels:
 
         path = self._file(REID_ROLE, given)
         model = self._load(
-            (REID_ROLE, path, self.threads, reuse),
-            lambda: ReID(path, threads=self.threads, reuse=reuse),
+            (REID_ROLE, path, self.threads, self.device, reuse),
+            lambda: ReID(path, device=self.device, reuse=reuse),
         )
         model.reset()  # nothing carries over from the previous input
         return model
@@ -143,6 +159,7 @@ def run_job(
     settings_hash: str,
     shipped: dict[str, ShippedModel],
     threads: int | None = None,
+    device: str = "auto",
 ) -> JobRecord:
     """Track one input into its outputs and write its record; a bad input gives a ``failed``
     record with the one-line error (never an exception)."""
@@ -155,10 +172,8 @@ def run_job(
     _remove_partial_outputs(job)
     write_record(job, record)
     if threads is not None:
-        import cv2
-
-        cv2.setNumThreads(threads)
-    models = WorkerModels(shipped, threads)
+        use_cpus(threads)
+    models = WorkerModels(shipped, threads, device)
     try:
         spec = run_args(settings, job, threads)
         src, pipe, dets, out, rng = open_run(spec, models)

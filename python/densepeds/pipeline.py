@@ -200,6 +200,9 @@ class Pipeline:
     preset: a name in ``densepeds.presets.PRESETS`` (default: the detector's own, ``detfile``
         for detections given or read from a file); the caller's values win over it. ``preset``
         and ``params`` show what is in use.
+    device: where the models the pipeline loads run: ``auto`` (default: a GPU where one is
+        usable, else the CPU), ``cpu`` or ``cuda`` (``densepeds.detect.onnxutil.providers``);
+        models given loaded keep their own.
     """
 
     def __init__(
@@ -213,8 +216,12 @@ class Pipeline:
         detector_options: Mapping[str, Any] | None = None,
         tracker: Any = None,
         preset: str | None = None,
+        device: str = "auto",
         **tracker_params: Any,
     ) -> None:
+        from densepeds.detect import DEVICES
+
+        self.device = _check_choice("device", device, DEVICES)
         self.motion = _check_choice("motion", motion, MOTIONS)
         self.features = _check_choice("features", features, FEATURES)
         if isinstance(detector, str):
@@ -279,7 +286,9 @@ class Pipeline:
             from densepeds.detect import make_detector
 
             model = None if self._detector_model is None else Path(self._detector_model)
-            self._detector = make_detector(self._detector_spec, model, **self._detector_options)
+            self._detector = make_detector(
+                self._detector_spec, model, device=self.device, **self._detector_options
+            )
         return self._detector
 
     def reid(self) -> Embedder:
@@ -287,7 +296,7 @@ class Pipeline:
             from densepeds.reid import ReID
 
             model = None if self._reid_spec is None else Path(self._reid_spec)  # type: ignore[arg-type]
-            self._reid = ReID(model)
+            self._reid = ReID(model, device=self.device)
         return self._reid
 
     # --- one frame ------------------------------------------------------------------------------

@@ -32,6 +32,7 @@ POOL_FLOOR = 0.1  # weight of a background cell in mask-weighted pooling (person
 # Crops a thread embeds in one onnxruntime call: memory stays bounded however many people a frame
 # has; the embeddings do not change.
 CROPS_PER_THREAD = 16
+CROPS_PER_GPU_CALL = 128  # on a GPU: a frame's crops in one call
 
 
 @dataclass(frozen=True)
@@ -84,7 +85,8 @@ class ReID:
     crop's and its mirror's embeddings (twice the work);
     ``context``: crops grow by this fraction of the box's width and height on each side. Both
     are off by default: neither raised the tracked HOTA on the real videos
-    (``benchmarks/results/decisions.md``).
+    (``benchmarks/results/decisions.md``). ``device`` (``densepeds.detect.DEVICES``):
+    where the model runs (as ``YoloSegDetector``'s); ``device`` (attribute) is where it runs.
     """
 
     def __init__(
@@ -98,6 +100,7 @@ class ReID:
         input_size: tuple[int, int] | None = None,
         flip: bool = False,
         context: float = 0.0,
+        device: str = "auto",
     ) -> None:
         if batch_size < 1:
             raise ParameterError(f"batch_size must be >= 1, got {batch_size}")
@@ -113,8 +116,12 @@ class ReID:
         self.input_size = input_size
         self.threads = threads
         self.session, self.rewritten = onnxutil.batched_session(
-            path, 1 if threads is None else threads, input_size=input_size
+            path,
+            onnxutil.session_threads(threads, device),
+            input_size=input_size,
+            device=device,
         )
+        self.device = onnxutil.session_device(self.session)  # later sessions: the same
         inputs = onnxutil.specs(self.session.get_inputs())
         outputs = onnxutil.specs(self.session.get_outputs())
         if len(inputs) != 1 or len(inputs[0].shape) != 4 or len(outputs) < 1:
@@ -186,7 +193,9 @@ class ReID:
         if len(shape) > 0 and shape[0] == 2:
             return
         if self.rewritten:
-            self.session = onnxutil.make_session(onnxutil.load_model(self.path), self.threads or 1)
+            self.session = onnxutil.make_session(
+                onnxutil.load_model(self.path), self.threads or 1, device=self.device
+            )
             self.rewritten = False
             self.one_at_a_time = True
             return
@@ -212,15 +221,19 @@ class ReID:
             ):
                 model = onnxutil.with_dynamic_batch(model)
             pooled, size = onnxutil.with_weighted_final_pool(model)
-            threads = 1 if self.threads is None else self.threads
-            self._pooled = (onnxutil.make_session(pooled, threads), size)
+            threads = onnxutil.session_threads(self.threads, self.device)
+            self._pooled = (onnxutil.make_session(pooled, threads, device=self.device), size)
         return self._pooled
 
     def _run(
         self, batch_bgr: npt.NDArray[np.uint8], weights: npt.NDArray[np.float32] | None = None
     ) -> npt.NDArray[np.float32]:
-        """Embeddings of the crops, at most ``CROPS_PER_THREAD`` per thread at a time."""
-        most = CROPS_PER_THREAD * (self.threads or onnxutil.available_cpus())
+        """Embeddings of the crops, at most ``CROPS_PER_THREAD`` per thread (on a GPU
+        ``CROPS_PER_GPU_CALL``) at a time."""
+        if self.device == "cuda":
+            most = CROPS_PER_GPU_CALL
+        else:
+            most = CROPS_PER_THREAD * (self.threads or onnxutil.available_cpus())
         if len(batch_bgr) > most:
             parts = [
                 self._run(
@@ -240,12 +253,12 @@ class ReID:
                 return np.asarray(session.run(None, {k: v[i : i + 1] for k, v in feed.items()})[0])
 
             items = range(len(batch_bgr))
-            if self.threads is None and len(batch_bgr) > 1:
+            if self.threads is None and self.device == "cpu" and len(batch_bgr) > 1:
                 rows = list(split_batch.cpu_pool().map(one, items))
             else:
                 rows = [one(i) for i in items]
             out = np.concatenate(rows)
-        elif self.threads is None:
+        elif self.threads is None and self.device == "cpu":
             out = split_batch.run_split(session, feed)[0]
         else:
             out = session.run(None, feed)[0]

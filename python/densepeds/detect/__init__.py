@@ -8,6 +8,7 @@ from typing import Protocol
 import numpy as np
 import numpy.typing as npt
 
+from densepeds.detect.onnxutil import DEVICES
 from densepeds.types import Detections
 
 
@@ -16,6 +17,8 @@ class Detector(Protocol):
 
 
 DETECTOR_KINDS = ("yoloseg", "maskrcnn")
+# Where models run (densepeds.detect.onnxutil): a GPU where usable, the CPU, a GPU, the CPU
+# through OpenVINO.
 DEFAULT_MODELS = {"yoloseg": "yolov8n-seg-320-int8.onnx", "maskrcnn": "maskrcnn_resnet50_fpn.onnx"}
 
 
@@ -55,4 +58,4 @@ def make_detector(
     return MaskRCNNDetector(path, tiles=grid, threads=threads, **extra)  # type: ignore[arg-type]
 
 
-__all__ = ["DETECTOR_KINDS", "Detector", "make_detector"]
+__all__ = ["DETECTOR_KINDS", "DEVICES", "Detector", "make_detector"]

@@ -66,6 +66,7 @@ class MaskRCNNDetector:
         threads: int | None = None,
         person_label: int = 1,
         tile_input_size: int = 800,
+        device: str = "auto",
     ) -> None:
         if not 0.0 <= score_threshold <= 1.0:
             raise ParameterError(f"score_threshold must be in [0, 1], got {score_threshold}")
@@ -79,7 +80,7 @@ class MaskRCNNDetector:
         self.iou_threshold = iou_threshold
         self.person_label = person_label
         self.tile_input_size = tile_input_size
-        self.session = onnxutil.make_session(onnxutil.load_model(model), threads)
+        self.session = onnxutil.make_session(onnxutil.load_model(model), threads, device=device)
         inputs = onnxutil.specs(self.session.get_inputs())
         outputs = onnxutil.specs(self.session.get_outputs())
         if len(inputs) != 1 or len(inputs[0].shape) != 3 or inputs[0].shape[0] != 3:

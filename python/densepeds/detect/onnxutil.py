@@ -1,4 +1,15 @@
-"""onnxruntime sessions on CPU, and dynamic-batch copies of fixed-batch models.
+"""onnxruntime sessions on the CPU or a GPU, and dynamic-batch copies of fixed-batch models.
+
+Every session is made here, on the execution providers :func:`providers` picks for the device
+asked for (``densepeds.detect.DEVICES``): ``cpu`` onnxruntime's CPU provider; ``cuda`` NVIDIA's
+CUDA provider (TensorRT's first where TensorRT's library is installed), which needs the ``gpu``
+extra (``onnxruntime-gpu`` in place of ``onnxruntime``, with NVIDIA's CUDA and cuDNN wheels, which
+``onnxruntime.preload_dlls`` loads) and a usable GPU, else a
+:class:`~densepeds.errors.ParameterError` saying so; ``auto`` the GPU where one is usable, else
+the CPU (a :class:`DeviceWarning` where a GPU provider is installed but cannot run);
+``openvino`` the CPU through OpenVINO's runtime (:class:`OpenVinoSession`; ``pip install
+openvino``), whose outputs on the shipped models are onnxruntime's to float rounding
+(``tests/test_runtime.py``).
 
 Batching all tiles (or all crops) into one call saves the per-call overhead and lets onnxruntime
 parallelise over the batch; a model exported with batch fixed to 1 is rewritten once, in memory.
@@ -18,10 +29,12 @@ only where a model is rewritten.
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import hashlib
 import os
 import platform
-from collections.abc import Iterator
+import warnings
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
@@ -32,10 +45,216 @@ import onnxruntime as ort
 
 from densepeds.errors import ModelError, ParameterError
 
+# Where a model runs (``--device``): see the module docstring.
+DEVICES = ("auto", "cpu", "cuda", "openvino")
+
 if TYPE_CHECKING:
     import onnx
 
 BATCH_DIM = "batch"
+
+CPU_PROVIDER = "CPUExecutionProvider"
+CUDA_PROVIDER = "CUDAExecutionProvider"
+TENSORRT_PROVIDER = "TensorrtExecutionProvider"
+OPENVINO_HINT = "device openvino needs OpenVINO: pip install 'densepeds[openvino]'"
+GPU_HINT = (
+    "install the gpu extra (pip uninstall onnxruntime; pip install 'densepeds[gpu]') on a "
+    "machine with an NVIDIA GPU and its driver"
+)
+
+
+class DeviceWarning(UserWarning):
+    """``device="auto"``: a GPU provider is installed but cannot run; the CPU runs instead."""
+
+
+def check_device(device: str) -> str:
+    if device not in DEVICES:
+        raise ParameterError(f"device must be one of {', '.join(DEVICES)}, got {device!r}")
+    return device
+
+
+def providers(device: str) -> list[str]:
+    """The execution providers a session on ``device`` asks for, best first (the CPU last:
+    onnxruntime runs there what the GPU's providers cannot). ``cuda`` without onnxruntime's CUDA
+    provider is a ParameterError; ``auto`` then gives the CPU alone."""
+    check_device(device)
+    if device in ("cpu", "openvino"):  # OpenVINO's sessions take no onnxruntime providers
+        return [CPU_PROVIDER]
+    available = ort.get_available_providers()
+    if CUDA_PROVIDER not in available:
+        if device == "cuda":
+            raise ParameterError(
+                f"device cuda: this onnxruntime ({ort.__version__}) has no CUDA provider; "
+                + GPU_HINT
+            )
+        return [CPU_PROVIDER]
+    # onnxruntime-gpu lists TensorRT's provider whether or not TensorRT is installed.
+    trt = [TENSORRT_PROVIDER] if TENSORRT_PROVIDER in available and tensorrt_installed() else []
+    return [*trt, CUDA_PROVIDER, CPU_PROVIDER]
+
+
+@cache
+def tensorrt_installed() -> bool:
+    """Whether TensorRT's library can be found (the system's, or the ``tensorrt`` wheels')."""
+    import ctypes.util
+    import importlib.util
+
+    if ctypes.util.find_library("nvinfer") is not None:
+        return True
+    return any(importlib.util.find_spec(m) is not None for m in ("tensorrt", "tensorrt_libs"))
+
+
+@cache
+def _preload_gpu_libraries() -> None:
+    """Load the CUDA and cuDNN libraries of NVIDIA's wheels (the gpu extra), where this
+    onnxruntime can (``onnxruntime.preload_dlls``, 1.21 on); else the system's are used."""
+    preload = getattr(ort, "preload_dlls", None)
+    if preload is not None:
+        with contextlib.suppress(Exception):  # none there: the system's, or no GPU session
+            preload()
+
+
+def on_gpu(session: ort.InferenceSession | OpenVinoSession) -> bool:
+    """Whether ``session`` runs on a GPU provider (the CPU's runs only what they cannot)."""
+    return session.get_providers()[0] in (CUDA_PROVIDER, TENSORRT_PROVIDER)
+
+
+def session_device(session: ort.InferenceSession | OpenVinoSession) -> str:
+    """The device ``session`` runs on, as a later session of the same model should ask for it."""
+    if isinstance(session, OpenVinoSession):
+        return "openvino"
+    return "cuda" if on_gpu(session) else "cpu"
+
+
+def session_threads(threads: int | None, device: str) -> int | None:
+    """The threads of a model's session where its batches are split one part per CPU when
+    ``threads`` is None (:mod:`densepeds.detect.split_batch`: one thread each); OpenVINO runs
+    each batch whole, on every CPU (None)."""
+    return threads if threads is not None or device == "openvino" else 1
+
+
+@dataclass(frozen=True)
+class _Arg:
+    name: str
+    shape: tuple[int | str, ...]
+    type: str
+
+
+_OV_TYPES = {"f32": "tensor(float)", "u8": "tensor(uint8)", "i64": "tensor(int64)"}
+
+
+class OpenVinoSession:
+    """The part of onnxruntime's ``InferenceSession`` this package calls, run by OpenVINO on the
+    CPU: ``run(None, feed)`` (from several threads at once: one request per call),
+    ``get_inputs``, ``get_outputs`` and ``get_providers``. Precision is held at f32, so that
+    the outputs are onnxruntime's to float rounding (OpenVINO would otherwise pick bf16 on CPUs
+    that have it); ``threads`` None uses every CPU."""
+
+    PROVIDER = "OpenVINO"
+
+    def __init__(self, data: str | bytes, threads: int | None) -> None:
+        try:
+            import openvino as ov
+        except ImportError as err:
+            raise ParameterError(OPENVINO_HINT) from err
+        self.threads = threads or available_cpus()
+        config = {
+            "INFERENCE_NUM_THREADS": self.threads,
+            "PERFORMANCE_HINT": "LATENCY",
+            "INFERENCE_PRECISION_HINT": "f32",
+        }
+        try:
+            core = ov.Core()
+            with _own_signal_stack():
+                self._compiled = core.compile_model(core.read_model(data), "CPU", config)
+        except Exception as exc:  # OpenVINO raises its own RuntimeError types
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            raise ModelError(f"OpenVINO cannot load the model: {first}") from exc
+        self._inputs = [self._arg(p, k) for k, p in enumerate(self._compiled.inputs)]
+        self._outputs = [self._arg(p, k) for k, p in enumerate(self._compiled.outputs)]
+
+    @staticmethod
+    def _arg(port: object, index: int) -> _Arg:
+        shape = port.get_partial_shape()  # type: ignore[attr-defined]
+        dims = tuple(
+            d.get_length() if d.is_static else f"dim{index}_{k}" for k, d in enumerate(shape)
+        )
+        kind = port.get_element_type().get_type_name()  # type: ignore[attr-defined]
+        return _Arg(port.get_any_name(), dims, _OV_TYPES.get(kind, kind))  # type: ignore[attr-defined]
+
+    def get_inputs(self) -> list[_Arg]:
+        return list(self._inputs)
+
+    def get_outputs(self) -> list[_Arg]:
+        return list(self._outputs)
+
+    def get_providers(self) -> list[str]:
+        return [self.PROVIDER]
+
+    def run(
+        self,
+        names: list[str] | None,
+        feed: Mapping[str, np.ndarray],
+        run_options: object = None,  # onnxruntime's RunOptions: OpenVINO has its own logging
+    ) -> list[np.ndarray]:
+        request = self._compiled.create_infer_request()
+        result = request.infer(dict(feed))
+        wanted = [a.name for a in self._outputs] if names is None else names
+        by_name = {a.name: k for k, a in enumerate(self._outputs)}
+        return [np.array(result[self._compiled.outputs[by_name[n]]]) for n in wanted]
+
+
+class _StackT(ctypes.Structure):
+    _fields_ = (("sp", ctypes.c_void_p), ("flags", ctypes.c_int), ("size", ctypes.c_size_t))
+
+
+@contextlib.contextmanager
+def _own_signal_stack() -> Iterator[None]:
+    """Put the calling thread's alternate signal stack back after the block. OpenVINO's CPU
+    plugin gives the thread that compiles a model a stack of its own and frees it with the
+    model; Python runs its signal handlers on the alternate stack, so a Ctrl-C after such a
+    model is gone would crash the process (tests/test_runtime.py)."""
+    before = _StackT()
+    try:
+        sigaltstack = ctypes.CDLL(None).sigaltstack
+        saved = sigaltstack(None, ctypes.byref(before)) == 0
+    except (OSError, AttributeError, TypeError):  # no C library to ask (not POSIX)
+        saved = False
+    try:
+        yield
+    finally:
+        if saved:
+            sigaltstack(ctypes.byref(before), None)
+
+
+def _provider_options(names: list[str]) -> list[str | tuple[str, dict[str, str]]]:
+    """TensorRT builds an engine per input shape: kept on disk beside the optimised graphs."""
+    folder = ort_cache_dir()
+    if TENSORRT_PROVIDER not in names or folder is None:
+        return list(names)
+    trt = {"trt_engine_cache_enable": "True", "trt_engine_cache_path": str(folder / "tensorrt")}
+    return [(n, trt) if n == TENSORRT_PROVIDER else n for n in names]
+
+
+def _new_session(
+    data: str | bytes, options: ort.SessionOptions, device: str
+) -> ort.InferenceSession:
+    """A session on ``device``'s providers; where a GPU was asked for and onnxruntime could not
+    start it (no driver, no CUDA libraries, no GPU), ``cuda`` is a ParameterError and ``auto``
+    warns once per session and runs on the CPU."""
+    names = providers(device)
+    if names[0] != CPU_PROVIDER:
+        _preload_gpu_libraries()
+    session = ort.InferenceSession(data, sess_options=options, providers=_provider_options(names))
+    if names[0] != CPU_PROVIDER and not on_gpu(session):
+        message = (
+            f"onnxruntime lists {names[0]} but could not start it (no usable GPU, driver or "
+            f"CUDA libraries); {GPU_HINT}"
+        )
+        if device == "cuda":
+            raise ParameterError(f"device cuda: {message}")
+        warnings.warn(f"device auto runs on the CPU: {message}", DeviceWarning, stacklevel=3)
+    return session
 
 
 @dataclass(frozen=True)
@@ -54,12 +273,27 @@ def load_model(path: Path) -> onnx.ModelProto:
         raise ModelError(f"{path} is not a readable ONNX model: {exc}") from exc
 
 
+_cpu_limit: int | None = None  # limit_cpus: this process's share of the CPUs
+
+
 def available_cpus() -> int:
-    """CPUs this process may run on (``taskset``/cgroup affinity), not all the machine has."""
+    """CPUs this process may run on (``taskset``/cgroup affinity), not all the machine has; at
+    most the share :func:`limit_cpus` gave it."""
     try:
-        return max(1, len(os.sched_getaffinity(0)))
+        cpus = max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
+        cpus = os.cpu_count() or 1
+    return cpus if _cpu_limit is None else min(cpus, _cpu_limit)
+
+
+def limit_cpus(cpus: int | None) -> None:
+    """This process runs on ``cpus`` of the CPUs it may use (None: all of them), as a batch
+    worker given that share: sessions then split their batches and size their thread counts
+    for that many, as ``densepeds run`` does for a machine of that size."""
+    global _cpu_limit
+    if cpus is not None and cpus < 1:
+        raise ParameterError(f"cpus must be >= 1 or None, got {cpus}")
+    _cpu_limit = cpus
 
 
 def session_options(threads: int | None) -> ort.SessionOptions:
@@ -83,22 +317,31 @@ def session_options(threads: int | None) -> ort.SessionOptions:
 
 
 def make_session(
-    model: onnx.ModelProto | Path, threads: int | None, *, save_optimised: Path | None = None
+    model: onnx.ModelProto | Path,
+    threads: int | None,
+    *,
+    device: str = "auto",
+    save_optimised: Path | None = None,
 ) -> ort.InferenceSession:
-    """A CPU session for ``model``; ``save_optimised`` also writes onnxruntime's optimised graph
-    there (atomically; where it cannot be written the session is made without it)."""
+    """A session for ``model`` on ``device`` (see :func:`providers`); ``save_optimised`` (CPU
+    sessions) also writes onnxruntime's optimised graph there (atomically; where it cannot be
+    written the session is made without it)."""
     data = str(model) if isinstance(model, Path) else model.SerializeToString()
+    if device == "openvino":
+        return OpenVinoSession(data, threads)  # type: ignore[return-value]
     # The shipped int8 export makes onnxruntime's default logger warn about a deprecated
     # attribute at every load; that is noise to a user, so only errors are logged.
     ort.set_default_logger_severity(3)
     options = session_options(threads)
-    if save_optimised is not None:
+    if save_optimised is not None and providers(device) == [CPU_PROVIDER]:
         session = _session_saving(data, options, save_optimised)
         if session is not None:
             return session
         options = session_options(threads)
     try:
-        return ort.InferenceSession(data, sess_options=options, providers=["CPUExecutionProvider"])
+        return _new_session(data, options, device)
+    except ParameterError:
+        raise
     except Exception as exc:
         raise ModelError(f"onnxruntime cannot load the model: {exc}") from exc
 
@@ -111,9 +354,7 @@ def _session_saving(
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         options.optimized_model_filepath = str(tmp)
-        session = ort.InferenceSession(
-            data, sess_options=options, providers=["CPUExecutionProvider"]
-        )
+        session = ort.InferenceSession(data, sess_options=options, providers=[CPU_PROVIDER])
         os.replace(tmp, target)
         prune_cache(target.parent, ORT_CACHE_KEEP)
         return session
@@ -185,9 +426,7 @@ def _cached_session(file: Path, threads: int | None) -> ort.InferenceSession | N
     options = session_options(threads)
     options.graph_optimization_level = ort.GraphOptimizationLevel.ORT_DISABLE_ALL
     try:
-        session = ort.InferenceSession(
-            str(file), sess_options=options, providers=["CPUExecutionProvider"]
-        )
+        session = ort.InferenceSession(str(file), sess_options=options, providers=[CPU_PROVIDER])
     except Exception:  # a damaged file (e.g. a full disk): made again
         return None
     with contextlib.suppress(OSError):
@@ -308,16 +547,20 @@ def batched_session(
     dequantize: bool = False,
     input_size: tuple[int, int] | None = None,
     anchors: bool = False,
+    device: str = "auto",
 ) -> tuple[ort.InferenceSession, bool]:
-    """A session accepting any batch size, and whether the model had to be rewritten for it.
+    """A session on ``device`` accepting any batch size, and whether the model had to be
+    rewritten for it.
 
     ``dequantize`` runs a float copy of a QDQ-quantised model (see :func:`dequantized`);
     ``input_size`` (height, width) resizes the model's input (``anchors``: a detector whose
-    anchor grid must follow; see :func:`with_input_size`).
+    anchor grid must follow; see :func:`with_input_size`). Only CPU sessions use the cache of
+    optimised graphs (a GPU provider's optimised graph holds nodes only it runs).
     """
     anchors = anchors and input_size is not None
     recipe = f"batched dequantize={dequantize} input_size={input_size} anchors={anchors}"
-    target = optimised_file(path, recipe, threads)
+    cpu = device != "openvino" and providers(device) == [CPU_PROVIDER]
+    target = optimised_file(path, recipe, threads) if cpu else None
     if target is not None:
         session = _cached_session(target, threads)
         if session is not None:
@@ -333,10 +576,10 @@ def batched_session(
         model = with_dynamic_batch(model)
     if target is None:
         unchanged = not (rewritten or dequantize)  # else the rewritten model, not the file
-        return make_session(path if unchanged else model, threads), rewritten
+        return make_session(path if unchanged else model, threads, device=device), rewritten
     entry = model.metadata_props.add()
     entry.key, entry.value = REWRITTEN_KEY, str(int(rewritten))
-    return make_session(model, threads, save_optimised=target), rewritten
+    return make_session(model, threads, device=device, save_optimised=target), rewritten
 
 
 METADATA_FIELD = (

@@ -47,11 +47,12 @@ class Tile:
 
 
 def parse_grid(tiles: TilesSpec, width: int, height: int, input_size: int) -> tuple[int, int]:
-    """(columns, rows) from the user's spec: None/1/"none" = one pass, "auto", (c, r), "CxR".
-    ("auto" here is the fixed grid; YoloSegDetector starts from it, then follows the people.)"""
+    """(columns, rows) from the user's spec: None/1/"none" = one pass, "auto" or "grid" (the
+    fixed grid :func:`auto_grid` chooses), (c, r), "CxR". (YoloSegDetector starts its "auto"
+    tiles from that grid, then follows the people; "grid" keeps it.)"""
     if tiles is None or tiles == 1 or tiles == "none":
         return 1, 1
-    if tiles == "auto":
+    if tiles in ("auto", "grid"):
         return auto_grid(width, height, input_size)
     if isinstance(tiles, str) and "x" in tiles:
         parts = tiles.lower().split("x")
@@ -64,7 +65,7 @@ def parse_grid(tiles: TilesSpec, width: int, height: int, input_size: int) -> tu
     ):
         return tiles[0], tiles[1]
     raise ParameterError(
-        "tiles must be None, 'auto', 'none', 'CxR' or (columns, rows) with 1..16 each, "
+        "tiles must be None, 'auto', 'grid', 'none', 'CxR' or (columns, rows) with 1..16 each, "
         f"got {tiles!r}"
     )
 

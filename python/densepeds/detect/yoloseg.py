@@ -44,6 +44,7 @@ MIN_FOCUS_SIDE = 8  # pixels: a focus view cut smaller than this by the frame's 
 # a time (YoloSegDetector.views_per_call): the frame's memory stays bounded however many views
 # it has (focus views grow with the people lost); the outputs do not change.
 VIEWS_PER_THREAD = 4
+VIEWS_PER_GPU_CALL = 32  # on a GPU: a frame's views in one call (the default tiles: at most 24)
 EXPECTED = (
     "a YOLOv8/YOLO11-seg ONNX model: one image input [1,3,H,W] or [1,H,W,3] (RGB in [0,1]) and "
     "outputs [1,4+classes+masks,anchors] and prototypes [1,masks,h,w] or [1,h,w,masks] "
@@ -116,7 +117,8 @@ class YoloSegDetector:
     frames (``densepeds.detect.tiling.PeopleTiles``; ``auto_grid``'s fixed grid until enough
     are seen): bands of square tiles sized so that a person there spans ``person_share`` of
     the input, magnified at most ``max_scale``, at most ``max_tiles`` views a frame and at most
-    twice the fixed grid's (``tiling.GRID_MULTIPLE``); a fixed grid is given as "CxR".
+    twice the fixed grid's (``tiling.GRID_MULTIPLE``); a fixed grid is given as "CxR", or
+    ``"grid"`` for the one ``tiling.auto_grid`` chooses for the frame size.
     ``full_scan_every=k`` (default 1: every frame) runs all of those tiles (or the fixed
     grid's) on every k-th frame only, and on the frames between just views of the people found
     in the last k frames (``tiling.SkipSchedule``): windows of the tiles' sizes placed over
@@ -145,6 +147,11 @@ class YoloSegDetector:
     same cross-view suppression, and the tile choice learns only from the detections kept from
     the tiles' views. Nothing changes until :meth:`focus` is called. The default was chosen
     leave-one-out on the four video cells (benchmarks/results/decisions.md).
+
+    ``device`` (``densepeds.detect.DEVICES``; :mod:`densepeds.detect.onnxutil`)
+    chooses where the model runs; on a GPU a frame's views run in one call (at most
+    ``VIEWS_PER_GPU_CALL``) and ``threads`` only sets the CPU's share; ``openvino`` runs each
+    batch in one call on ``threads`` (None: every CPU). ``device`` (attribute) is where it runs.
     """
 
     def __init__(
@@ -167,6 +174,7 @@ class YoloSegDetector:
         full_scan_every: int = 1,
         focus_scale: float = 2.5,
         fit_input: bool = True,
+        device: str = "auto",
     ) -> None:
         if not 0.0 <= focus_scale < float("inf"):
             raise ParameterError(f"focus_scale must be >= 0 and finite, got {focus_scale}")
@@ -194,8 +202,12 @@ class YoloSegDetector:
         self._input_size: tuple[int, int] | None = None  # None: the model's own
         self._unfit: set[tuple[int, int]] = set()  # sizes the model cannot be given
         self.session, self.rewritten = onnxutil.batched_session(
-            self.path, 1 if threads is None else threads, dequantize=self.dequantize
+            self.path,
+            onnxutil.session_threads(threads, device),
+            dequantize=self.dequantize,
+            device=device,
         )
+        self.device = onnxutil.session_device(self.session)  # later sessions: the same
         self._wide: ort.InferenceSession | None = None
         self.batch_views = batch_views
         # Seconds spent per stage (preprocess, inference, boxes, masks), for benchmarks.
@@ -279,7 +291,7 @@ class YoloSegDetector:
         if self.batch_views:
             out = self._run_views(x)
             return out[self.pred_index], out[self.proto_index]
-        session = self._wide_session() if self.threads is None else self.session
+        session = self._wide_session()
         parts = [session.run(None, {self.input_name: x[i : i + 1]}) for i in range(len(x))]
         preds = np.concatenate([p[self.pred_index] for p in parts])
         protos = np.concatenate([p[self.proto_index] for p in parts])
@@ -288,23 +300,27 @@ class YoloSegDetector:
     def views_per_call(self) -> int:
         """Views letterboxed, run and reduced to their candidates at a time: at most
         ``VIEWS_PER_THREAD`` per thread, so that the frame's memory stays bounded however
-        many views it has (the input, the activations and the raw predictions of one part)."""
+        many views it has (the input, the activations and the raw predictions of one part);
+        on a GPU ``VIEWS_PER_GPU_CALL``."""
+        if self.device == "cuda":
+            return VIEWS_PER_GPU_CALL
         return VIEWS_PER_THREAD * (self.threads or onnxutil.available_cpus())
 
     def _run_views(self, x: npt.NDArray[np.float32]) -> list[np.ndarray]:
         """The model on a batch of views: with ``threads`` None split one part per CPU where
         the views divide evenly, else one call on every CPU; with ``threads`` one call on that
-        many threads."""
+        many threads; on a GPU or with OpenVINO one call."""
         feed = {self.input_name: x}
-        if self.threads is not None:
+        if self.threads is not None or self.device != "cpu":
             return list(self.session.run(None, feed))
         if len(x) % onnxutil.available_cpus():
             return list(self._wide_session().run(None, feed))
         return split_batch.run_split(self.session, feed)
 
     def _wide_session(self) -> ort.InferenceSession:
-        """The model on every CPU in one call (``threads`` None: batches that do not split)."""
-        if onnxutil.available_cpus() == 1:
+        """The model on every CPU in one call (``threads`` None: batches that do not split);
+        the session as it is where ``threads`` is given, on one CPU or on a GPU."""
+        if self.threads is not None or onnxutil.available_cpus() == 1 or self.device != "cpu":
             return self.session
         if self._wide is None:
             self._wide, _ = onnxutil.batched_session(
@@ -313,6 +329,7 @@ class YoloSegDetector:
                 dequantize=self.dequantize,
                 input_size=self._input_size,
                 anchors=True,
+                device=self.device,
             )
         return self._wide
 
@@ -328,10 +345,11 @@ class YoloSegDetector:
         try:
             session, self.rewritten = onnxutil.batched_session(
                 self.path,
-                1 if self.threads is None else self.threads,
+                onnxutil.session_threads(self.threads, self.device),
                 dequantize=self.dequantize,
                 input_size=wanted,
                 anchors=True,
+                device=self.device,
             )
         except ModelError:  # e.g. an anchor grid in a form it does not know: runs as it is
             self._unfit.add(size)

@@ -49,19 +49,35 @@ def open_run(spec: RunSpec, models: Any = None) -> tuple[Any, Any, Any, Path, An
         raise ParameterError(
             f"--features {features} needs frames, and {spec.input} has none (use --features none)"
         )
-    tiles = spec.tiles
+    profile = None
+    if spec.speed is not None:
+        if detector != "yoloseg" or spec.detections is not None:
+            raise ParameterError(
+                f"--speed {spec.speed} sets the yoloseg detector, and this run does not detect "
+                "with it (add --detector yoloseg to detect)"
+            )
+        from densepeds.speed import get_speed
+
+        profile = get_speed(spec.speed)
+
+    def chosen(name: str) -> Any:
+        """The option given, else the speed profile's value (None: the detector's own)."""
+        given = getattr(spec, name)
+        return getattr(profile, name) if given is None and profile is not None else given
+
+    tiles = chosen("tiles")
     if tiles is not None and (detector is None or spec.detections is not None):
         raise ParameterError(
             "--tiles sets the CNN detector's views, and this run tracks detections from a file "
             "(add --detector yoloseg to detect)"
         )
-    full_scan_every = spec.full_scan_every
+    full_scan_every = chosen("full_scan_every")
     if full_scan_every is not None and (detector != "yoloseg" or spec.detections is not None):
         raise ParameterError(
             "--full-scan-every sets the yoloseg detector's views, and this run does not detect "
             "with it (add --detector yoloseg to detect)"
         )
-    focus_lost = spec.focus_lost
+    focus_lost = chosen("focus_lost")
     if focus_lost is not None and (detector != "yoloseg" or spec.detections is not None):
         raise ParameterError(
             "--focus-lost adds views to the yoloseg detector, and this run does not detect "
@@ -76,6 +92,8 @@ def open_run(spec: RunSpec, models: Any = None) -> tuple[Any, Any, Any, Path, An
         )
         if value is not None
     }
+    if profile is not None:
+        detector_options["quantized"] = profile.int8
     reid_reuse = spec.reid_reuse
     if reid_reuse and features == "none":
         raise ParameterError(
@@ -101,7 +119,7 @@ def open_run(spec: RunSpec, models: Any = None) -> tuple[Any, Any, Any, Path, An
     elif reid_reuse:
         from densepeds.reid import ReID
 
-        reid_spec = ReID(spec.reid_model, reuse=True)
+        reid_spec = ReID(spec.reid_model, reuse=True, device=spec.device)
     pipe = Pipeline(
         detector_spec,
         reid=reid_spec,
@@ -110,6 +128,7 @@ def open_run(spec: RunSpec, models: Any = None) -> tuple[Any, Any, Any, Path, An
         detector_model=spec.detector_model,
         detector_options=detector_options or None,
         preset=preset,
+        device=spec.device,
         **dict(spec.params),
     )
     if detector is not None and dets is None:

@@ -14,12 +14,19 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any, TypeVar
 
+from densepeds.detect import DEVICES
 from densepeds.pipeline import DEFAULT_FEATURES, DETECTORS, FEATURES, MOTIONS
 from densepeds.presets import DEFAULT_PRESET, PRESETS
+from densepeds.speed import SPEEDS
 
 DETECTOR_MODEL_HELP = (
     "detector ONNX file (default: the first present of the --detector's models, from "
     "$DENSEPEDS_MODEL_DIR or the user cache; `densepeds models` says which)"
+)
+DEVICE_HELP = (
+    "where the detector and re-ID models run: auto an NVIDIA GPU where one is usable, else the "
+    "CPU; cpu; cuda a GPU or fail (needs the gpu extra: pip install 'densepeds[gpu]'); openvino "
+    "the CPU through OpenVINO's runtime (pip install 'densepeds[openvino]'); default auto"
 )
 REID_MODEL_HELP = (
     "re-ID ONNX file, e.g. an OSNet or YoutuReID export (default: the first present of the "
@@ -52,6 +59,9 @@ class RunOptions:
     full_scan_every: int | None = None
     focus_lost: float | None = None
     preset: str | None = None
+    speed: str | None = None
+    # where the models run
+    device: str = "auto"
     # re-ID
     features: str | None = None
     reid_model: str | None = None
@@ -205,10 +215,11 @@ OPTIONS: tuple[Option, ...] = (
     _option("--detector-model", metavar="PATH", help=DETECTOR_MODEL_HELP, group="detection"),
     _option(
         "--tiles",
-        metavar="auto|CxR|none",
+        metavar="auto|grid|CxR|none",
         help="the CNN detector's views of a frame: auto tiles that follow the people "
         "(at most twice the fixed grid's views); CxR a fixed grid of overlapping tiles, e.g. 3x2 "
-        "(faster, fewer people found in crowds); none the whole frame in one view; default auto",
+        "(faster, fewer people found in crowds), grid the one chosen for the frame size (3x2 "
+        "at most); none the whole frame in one view; default auto",
         group="detection",
     ),
     _option(
@@ -231,6 +242,16 @@ OPTIONS: tuple[Option, ...] = (
         "slower there); 0 turns it off; default 2.5 (YoloSegDetector's focus_scale)",
         group="detection",
     ),
+    _option(
+        "--speed",
+        choices=SPEEDS,
+        help="a measured point on the speed/accuracy curve, setting the yoloseg detector's "
+        "--tiles, --full-scan-every, --focus-lost and int8 copy (options given win; "
+        "docs/speed.md): " + "; ".join(p.describe() for p in SPEEDS.values()) + "; default: none "
+        "(the options' own defaults)",
+        group="detection",
+    ),
+    _option("--device", choices=DEVICES, default="auto", help=DEVICE_HELP, group="detection"),
     _option("--reid-model", metavar="PATH", help=REID_MODEL_HELP, group="appearance (re-ID)"),
     _option(
         "--reid-reuse",
