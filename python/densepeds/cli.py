@@ -17,7 +17,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, NoReturn
 
-from densepeds.errors import DensePedsError, InputError, ParameterError
+from densepeds.errors import DensePedsError, InputError, ParameterError, warnings_as_lines
 from densepeds.pipeline import DEFAULT_FEATURES, DETECTORS, FEATURES, MOTIONS
 from densepeds.presets import DEFAULT_PRESET, PRESETS, preset_for
 
@@ -938,7 +938,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     }
     prefix = f"densepeds {args.command}"
     try:
-        with _termination_raises():
+        with _termination_raises(), warnings_as_lines(prefix):
             return handlers[args.command](args)
     except DensePedsError as err:
         sys.stderr.write(f"{prefix}: error: {_one_line(err)}\n")

@@ -22,7 +22,7 @@ import numpy as np
 import numpy.typing as npt
 
 from densepeds.boxes import box_area, intersections, iou_matrix
-from densepeds.errors import InputError, ParameterError
+from densepeds.errors import InputError, ParameterError, warn_input
 from densepeds.frames import check_frame
 from densepeds.presets import Preset, get_preset, preset_for
 from densepeds.segment import FEATURES as CROP_FEATURES
@@ -437,7 +437,7 @@ class Pipeline:
         if detections is not None:
             if isinstance(detections, Mapping):
                 return detections
-            return read_detections(detections)
+            return _checked_against(src, read_detections(detections), detections)
         if self.has_detector:
             if not getattr(src, "has_images", True):
                 raise InputError(f"{src.name}: has no images to run a detector on")
@@ -447,7 +447,37 @@ class Pipeline:
             return own
         det_path = getattr(src, "det_path", None)
         if det_path is not None:
-            return read_detections(det_path)
+            return _checked_against(src, read_detections(det_path), det_path)
         raise InputError(
             f"{src.name}: no detections: give a det file (--detections) or a detector (--detector)"
         )
+
+
+def _checked_against(
+    src: FrameSource, dets: dict[int, Detections], path: str | os.PathLike[str]
+) -> dict[int, Detections]:
+    """``dets`` of a det file, with a warning (never silently) for what the source drops or
+    reinterprets: detections past its last frame, and detections centred outside its image."""
+    length = getattr(src, "length", None)
+    if length is not None:
+        late = [k for k in dets if k > length]
+        if late:
+            count = sum(len(dets[k]) for k in late)
+            warn_input(
+                f"{path}: {count} detections in frames {min(late)}-{max(late)} lie past the "
+                f"sequence's {length} frames (seqLength) and are not tracked"
+            )
+    size = getattr(src, "size", None)
+    if size is not None:
+        width, height = size
+        outside = 0
+        for d in dets.values():
+            cx = 0.5 * (d.boxes[:, 0] + d.boxes[:, 2])
+            cy = 0.5 * (d.boxes[:, 1] + d.boxes[:, 3])
+            outside += int(np.count_nonzero((cx < 0) | (cx > width) | (cy < 0) | (cy > height)))
+        if outside:
+            warn_input(
+                f"{path}: {outside} detections are centred outside the {width}x{height} image "
+                "(imWidth x imHeight); tracks there are reported as leaving the image"
+            )
+    return dets

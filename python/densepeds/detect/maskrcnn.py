@@ -20,6 +20,9 @@ from densepeds.errors import ModelError, ParameterError
 from densepeds.frames import check_frame
 from densepeds.types import Detections
 
+# Models whose non-finite output was reported (once each).
+_NONFINITE_WARNED: set[object] = set()
+
 EXPECTED = (
     "a torchvision Mask R-CNN ONNX export: input float [3,H,W] RGB in [0,1]; outputs boxes [N,4], "
     "labels [N], scores [N], masks [N,1,H,W] (make one with models/export_maskrcnn.py)"
@@ -64,6 +67,8 @@ class MaskRCNNDetector:
         x *= np.float32(1 / 255)
         boxes, labels, scores, masks = self.session.run(None, {self.input_name: x})
         keep = (labels == self.person_label) & (scores >= self.score_threshold)
+        rows = np.concatenate([boxes[keep], scores[keep].reshape(-1, 1)], axis=1)
+        keep = np.flatnonzero(keep)[onnxutil.finite_rows(rows, self.path, _NONFINITE_WARNED)]
         return boxes[keep].astype(np.float64), scores[keep], masks[keep][:, 0]
 
     def __call__(self, frame: npt.NDArray[np.uint8]) -> Detections:
