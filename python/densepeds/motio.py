@@ -156,8 +156,8 @@ def _ini_line(ini: Path, key: str) -> int | None:
         return None
     found = None
     for no, line in enumerate(lines, 1):
-        name, sep, _ = line.partition("=")
-        if sep and name.strip().lower() == key.lower():
+        m = re.match(r"\s*([^=:]+?)\s*[=:]", line)
+        if m and m.group(1).lower() == key.lower():
             found = no
     return found
 
