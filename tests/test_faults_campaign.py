@@ -94,6 +94,33 @@ def test_crowded_frame_from_python_is_an_input_error() -> None:
         tracker.update(boxes, np.full(MAX_DETS, 0.9))
 
 
+def test_detector_crowd_past_the_bound_keeps_the_most_confident() -> None:
+    from densepeds.pipeline import Pipeline
+    from densepeds.types import Detections
+
+    n = MAX_DETS + 500
+    rng = np.random.default_rng(2)
+    xy = rng.uniform(0, 600, (n, 2))
+    boxes = np.c_[xy, xy + [20.0, 50.0]].astype(np.float32)
+    scores = rng.uniform(0.3, 1.0, n).astype(np.float32)
+
+    def detector(frame: np.ndarray) -> Detections:
+        return Detections(boxes, scores)
+
+    pipe = Pipeline(detector, features="none")
+    frame = np.zeros((480, 640, 3), np.uint8)
+    with pytest.warns(UserWarning, match=f"found {n} people in one frame; the {MAX_DETS} most"):
+        pipe.process(frame)
+    kept = pipe._frame_detections
+    assert len(kept) == MAX_DETS
+    assert kept.scores.min() >= np.sort(scores)[-MAX_DETS]
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        pipe.process(frame)  # said once
+
+
 # --- unbounded memory: eval by seqLength, a gt row at frame 2e9, scene --frames -------------------
 
 

@@ -226,6 +226,7 @@ class Pipeline:
         self._detector_model = detector_model
         self._detector_options = dict(detector_options or {})
         self._frame_detections = Detections.empty()  # the last frame's, for run_frames
+        self._capped_frames = 0  # frames whose detector output was cut to the tracker's bound
         self._reid_spec = reid
         self._reid: Embedder | None = reid if hasattr(reid, "embed") else None  # type: ignore[assignment]
         options = {k: tracker_params.pop(k) for k in DETECTION_OPTIONS if k in tracker_params}
@@ -297,6 +298,23 @@ class Pipeline:
             self._detector.reset()
         self.times = StageTimes()
 
+    def _at_most_tracked(self, detections: Detections) -> Detections:
+        """A detector's output cut to the most confident ``MAX_DETECTIONS_PER_FRAME`` (the most
+        the tracker takes in a frame), with a warning the first time."""
+        from densepeds._core import MAX_DETECTIONS_PER_FRAME
+
+        most = MAX_DETECTIONS_PER_FRAME
+        if len(detections) <= most:
+            return detections
+        if self._capped_frames == 0:
+            warn_input(
+                f"the detector found {len(detections)} people in one frame; the {most} most "
+                "confident are tracked (said once)"
+            )
+        self._capped_frames += 1
+        top = np.argsort(-detections.scores, kind="stable")[:most]
+        return detections.subset(np.sort(top))
+
     def process(
         self,
         frame: Image | None = None,
@@ -311,7 +329,7 @@ class Pipeline:
             if frame is None:
                 raise InputError("step() needs a frame, detections, or both")
             with self.times.stage("detection"):
-                detections = self.detector()(frame)
+                detections = self._at_most_tracked(self.detector()(frame))
         elif not isinstance(detections, Detections):
             raise InputError(f"detections must be densepeds.Detections, got {type(detections)}")
         self._frame_detections = detections  # as found or given, before the pipeline's filter
