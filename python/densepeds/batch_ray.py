@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from densepeds.batch_plan import Job, JobRecord, Settings, new_record, read_record, write_record
-from densepeds.batch_worker import ShippedModel, node_cache_dir, run_job
+from densepeds.batch_worker import ShippedModel, node_cache_path, run_job
 from densepeds.errors import ParameterError
 
 ADDRESS_ENV = "RAY_ADDRESS"
@@ -88,7 +88,7 @@ def session(address: str | None, num_cpus: int | None) -> Any:
         yield ray
     finally:
         if not address:  # this machine's copies of the models go with the local Ray
-            shutil.rmtree(node_cache_dir(), ignore_errors=True)
+            shutil.rmtree(node_cache_path(), ignore_errors=True)
         ray.shutdown()
         for sig, handler in saved.items():
             signal.signal(sig, handler)

@@ -52,7 +52,15 @@ _LOADED: dict[tuple[Any, ...], Any] = {}
 
 def node_cache_dir() -> Path:
     """Where shipped models are kept on this node: one folder per Ray node in the temporary
-    folder (a local Ray's is removed when the batch ends)."""
+    folder (a local Ray's is removed when the batch ends), made if needed and checked to be
+    this user's alone (:class:`ModelError` if not)."""
+    path = node_cache_path()
+    _private_dir(path.parent)
+    return _private_dir(path)
+
+
+def node_cache_path() -> Path:
+    """:func:`node_cache_dir`'s path, neither made nor checked."""
     node = "local"
     try:
         import ray
@@ -61,8 +69,7 @@ def node_cache_dir() -> Path:
             node = ray.get_runtime_context().get_node_id()[:16]
     except ImportError:
         pass
-    top = _private_dir(Path(tempfile.gettempdir()) / f"densepeds-batch-models-{os.getuid()}")
-    return _private_dir(top / node)
+    return Path(tempfile.gettempdir()) / f"densepeds-batch-models-{os.getuid()}" / node
 
 
 def _private_dir(path: Path) -> Path:
@@ -126,7 +133,6 @@ class WorkerModels:
         if model.ref is None:
             return model.path
         local = node_cache_dir() / f"{model.sha256[:16]}-{model.name}"
-        local.parent.mkdir(parents=True, exist_ok=True)
         # One worker of the node copies the file; the others wait for it (a lock per model).
         with open(local.with_name(f".{local.name}.lock"), "w") as lock:
             fcntl.flock(lock, fcntl.LOCK_EX)
