@@ -56,8 +56,8 @@ FloatArray = npt.NDArray[np.float64]
 MAX_SEQ_LENGTH = 2**31 - 1
 # Largest track id a tracks file may hold (ids fit a 32-bit integer, as MOTChallenge tools assume).
 MAX_TRACK_ID = 2**31 - 1
-# Largest image width or height a seqinfo.ini may declare (pixels; far above any camera).
-MAX_IMAGE_SIDE = 65536
+# Largest image width or height a seqinfo.ini may declare (pixels: 16K, above any camera).
+MAX_IMAGE_SIDE = 16384
 # Largest magnitude of a box coordinate or size in a MOTChallenge file (pixels): beyond it the
 # value is no position in any image (1e300 would overflow the tracker's float32 boxes).
 MAX_BOX_VALUE = 1e7
