@@ -519,6 +519,7 @@ def test_detector_nan_boxes_are_dropped_with_a_warning() -> None:
         ok = onnxutil.finite_rows(rows, "model.onnx", warned)
     assert ok.tolist() == [True, False, False]
     assert warned == {"model.onnx"}
+    assert onnxutil.finite_rows(np.zeros((0, 38), np.float32), "m", set()).shape == (0,)
 
 
 def test_yoloseg_pick_drops_non_finite_rows() -> None:

@@ -534,7 +534,7 @@ def finite_rows(rows: np.ndarray, model: object, warned: set[object]) -> np.ndar
     """
     from densepeds.errors import warn_input
 
-    ok = np.isfinite(rows.reshape(len(rows), -1)).all(axis=1)
+    ok = np.isfinite(rows).all(axis=tuple(range(1, rows.ndim)))
     if not ok.all() and model not in warned:
         warned.add(model)
         warn_input(
