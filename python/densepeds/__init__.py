@@ -2,7 +2,14 @@
 
 from __future__ import annotations
 
+import os
 from typing import TYPE_CHECKING, Any
+
+# FFmpeg (inside OpenCV) and OpenCV print their own lines on stderr (a damaged block, a missing
+# header) before our one-line error says the same: off the terminal unless the user asks for
+# them by setting these before the import (read once, when cv2 loads; -8 is FFmpeg's "quiet").
+os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
+os.environ.setdefault("OPENCV_LOG_LEVEL", "ERROR")
 
 from densepeds._core import __version__
 from densepeds.errors import DensePedsError, DetFileError, InputError, ModelError, ParameterError

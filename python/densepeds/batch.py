@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import os
+import signal
 import sys
 import tempfile
 import textwrap
@@ -215,8 +216,9 @@ def run(
     todo = [item.job for item in prep.items if item.action == "run"]
     records = {item.job.input: item.record for item in prep.items if item.action == "skip"}
     start_seconds = 0.0
+    stopped_by: int | None = None
     if todo:
-        from densepeds.batch_ray import execute, session
+        from densepeds.batch_ray import StopSignalError, execute, received_signal, session
         from densepeds.detect.onnxutil import available_cpus
 
         local_workers, threads = worker_shape(available_cpus(), len(todo), workers, threads)
@@ -232,18 +234,24 @@ def run(
                     rate = counter["frames"] / max(time.perf_counter() - begin, 1e-9)
                     progress(record, counter["done"], len(todo), rate)
 
-            for record in execute(
-                ray,
-                todo,
-                settings,
-                prep.settings_hash,
-                prep.models,
-                threads,
-                workers,
-                on_done,
-                settings.device,
-            ):
-                records[Path(record.input)] = record
+            try:
+                for record in execute(
+                    ray,
+                    todo,
+                    settings,
+                    prep.settings_hash,
+                    prep.models,
+                    threads,
+                    workers,
+                    on_done,
+                    settings.device,
+                ):
+                    records[Path(record.input)] = record
+            except StopSignalError as stop:
+                records.update({Path(r.input): r for r in stop.records})
+                stopped_by = stop.signum
+        if stopped_by is None:  # a signal noted after the last job ended
+            stopped_by = received_signal()
     result = BatchResult(
         records=[r for r in (records.get(item.job.input) for item in prep.items) if r is not None],
         out_dir=prep.out_dir,
@@ -254,6 +262,10 @@ def run(
         threads=threads,
     )
     write_json_atomic(prep.out_dir / SUMMARY_FILE, result.to_json())
+    if stopped_by is not None:
+        # Ray is gone and the summary written: the signal now acts as it would have (for the
+        # command, exit 128 + the signal; by default, the end of the process).
+        signal.raise_signal(stopped_by)
     return result
 
 

@@ -193,12 +193,12 @@ def expand_inputs(items: Iterable[str | os.PathLike[str]]) -> list[Path]:
             if not matches:
                 raise InputError(f"{text}: no file or folder matches")
             for m in matches:
-                found.extend(_expand_path(Path(m), explicit=False))
+                found.extend(_expand_path(Path(m), explicit=False, seen=set()))
             continue
         path = Path(text).expanduser()
         if not path.exists():
             raise InputError(f"{path}: no such file or folder")
-        found.extend(_expand_path(path, explicit=True))
+        found.extend(_expand_path(path, explicit=True, seen=set()))
     unique: dict[Path, Path] = {}  # by the file it is; named as given (a link keeps its name)
     for p in found:
         unique.setdefault(p.resolve(), Path(os.path.abspath(p)))
@@ -207,7 +207,9 @@ def expand_inputs(items: Iterable[str | os.PathLike[str]]) -> list[Path]:
     return list(unique.values())
 
 
-def _expand_path(path: Path, explicit: bool) -> list[Path]:
+def _expand_path(path: Path, explicit: bool, seen: set[Path]) -> list[Path]:
+    """The inputs at ``path``; ``seen``: the folders (resolved) already searched, so that a link
+    back to a folder above (a loop) is searched once, not forever."""
     if path.is_file():
         if path.name == "seqinfo.ini":
             return [path.parent]
@@ -218,19 +220,41 @@ def _expand_path(path: Path, explicit: bool) -> list[Path]:
         return []
     if is_input_folder(path):
         return [path]
+    real = path.resolve()
+    if real in seen:
+        return []
+    seen.add(real)
     inside: list[Path] = []
     for child in sorted(path.iterdir(), key=lambda p: p.name):
         if not child.name.startswith("."):
-            inside.extend(_expand_path(child, explicit=False))
+            inside.extend(_expand_path(child, explicit=False, seen=seen))
     if explicit and not inside:
         raise InputError(f"{path}: no videos, image folders or sequence folders inside")
     return inside
 
 
+# Longest output name (bytes): NAME.json's temporary (``.NAME.json.XXXXXXXX.tmp``) and every
+# other file of the job then fit the 255-byte file names of common file systems.
+MAX_NAME_BYTES = 160
+
+
+def _own_name(path: Path) -> str:
+    """The input's own output name: its stem or folder name, shortened (with a hash of its path)
+    past :data:`MAX_NAME_BYTES`, and never the summary's name (``batch.json``)."""
+    name = path.stem if path.is_file() else path.name
+    tag = hashlib.sha256(str(path).encode()).hexdigest()[:8]
+    if len(name.encode()) > MAX_NAME_BYTES:
+        cut = name.encode()[: MAX_NAME_BYTES - 9].decode(errors="ignore")
+        name = f"{cut}-{tag}"
+    if name.lower() == Path(SUMMARY_FILE).stem.lower():
+        name = f"{name}-{tag}"
+    return name
+
+
 def job_names(inputs: Sequence[Path]) -> list[str]:
-    """Output names: the video's stem or the folder's name; inputs that share one are told apart
-    by their parent folder's name, then by a hash of their path."""
-    names = [p.stem if p.is_file() else p.name for p in inputs]
+    """Output names: the video's stem or the folder's name (see :func:`_own_name`); inputs that
+    share one are told apart by their parent folder's name, then by a hash of their path."""
+    names = [_own_name(p) for p in inputs]
     for attempt in range(2):
         counts: dict[str, int] = {}
         for n in names:
@@ -239,7 +263,7 @@ def job_names(inputs: Sequence[Path]) -> list[str]:
             break
         for i, (n, p) in enumerate(zip(names, inputs, strict=True)):
             if counts[n] > 1:
-                if attempt == 0:
+                if attempt == 0 and len(f"{p.parent.name}-{n}".encode()) <= MAX_NAME_BYTES:
                     names[i] = f"{p.parent.name}-{n}"
                 else:
                     names[i] = f"{n}-{hashlib.sha256(str(p).encode()).hexdigest()[:8]}"

@@ -12,18 +12,41 @@ import hashlib
 import logging
 import os
 import shutil
+import signal
 import socket
 from collections.abc import Callable, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from densepeds.batch_plan import Job, JobRecord, Settings, new_record, write_record
-from densepeds.batch_worker import ShippedModel, node_cache_dir, run_job
+from densepeds.batch_plan import Job, JobRecord, Settings, new_record, read_record, write_record
+from densepeds.batch_worker import ShippedModel, node_cache_path, run_job
 from densepeds.errors import ParameterError
 
 ADDRESS_ENV = "RAY_ADDRESS"
 INSTALL_HINT = "densepeds batch needs Ray: pip install 'densepeds[ray]'"
+
+
+# The termination signals a batch handles: noted while Ray runs (Ray's own handler would end the
+# driver with a crash dump, and an exception raised inside a Ray call is a SystemError).
+STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
+# Signals received during the current session, in order.
+_RECEIVED: list[int] = []
+
+
+def received_signal() -> int | None:
+    """The first termination signal noted in the last session, if any."""
+    return _RECEIVED[0] if _RECEIVED else None
+
+
+class StopSignalError(Exception):
+    """A termination signal reached the driver: the jobs still running were cancelled and their
+    records say so. ``records``: every record of the jobs that ended (cancelled ones included)."""
+
+    def __init__(self, signum: int, records: list[JobRecord]) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+        self.records = records
 
 
 def import_ray() -> Any:
@@ -43,6 +66,7 @@ def session(address: str | None, num_cpus: int | None) -> Any:
         yield ray
         return
     address = address or os.environ.get(ADDRESS_ENV) or None
+    saved = {sig: signal.getsignal(sig) for sig in STOP_SIGNALS}  # restored when Ray is gone
     kwargs: dict[str, Any] = {
         "include_dashboard": False,
         "logging_level": logging.ERROR,
@@ -57,12 +81,18 @@ def session(address: str | None, num_cpus: int | None) -> Any:
     except (ConnectionError, RuntimeError, ValueError) as err:
         where = f"the Ray cluster at {address}" if address else "a local Ray"
         raise ParameterError(f"cannot start or join {where}: {err}") from err
+    # After ray.init (which installs Ray's own handlers): note the signal, stop at the next poll.
+    _RECEIVED.clear()
+    for sig in STOP_SIGNALS:
+        signal.signal(sig, lambda signum, _frame: _RECEIVED.append(signum))
     try:
         yield ray
     finally:
         if not address:  # this machine's copies of the models go with the local Ray
-            shutil.rmtree(node_cache_dir(), ignore_errors=True)
+            shutil.rmtree(node_cache_path(), ignore_errors=True)
         ray.shutdown()
+        for sig, handler in saved.items():
+            signal.signal(sig, handler)
 
 
 def check_reachable(address: str, timeout: float = 10.0) -> None:
@@ -137,11 +167,14 @@ def execute(
     limit = workers or len(jobs)
     try:
         while waiting or running:
+            if _RECEIVED:
+                raise StopSignalError(_RECEIVED[0], list(done.values()))
             while waiting and len(running) < limit:
                 job = waiting.pop(0)
                 ref = task.remote(job, settings, settings_hash, shipped, threads, device)
                 running[ref] = job
-            ready, _ = ray.wait(list(running), num_returns=1)
+            # Polled, so that a noted signal stops the batch within a fraction of a second.
+            ready, _ = ray.wait(list(running), num_returns=1, timeout=0.25)
             for ref in ready:
                 job = running.pop(ref)
                 try:
@@ -150,11 +183,35 @@ def execute(
                     record = _lost(job, settings_hash, err)
                 done[job.input] = record
                 on_done(record)
+    except StopSignalError as stop:
+        stop.records.extend(_cancel(ray, running, settings_hash, stop))
+        raise
     except BaseException:
         for ref in running:
             ray.cancel(ref, force=True)
         raise
     return [done[j.input] for j in jobs]
+
+
+def _cancel(
+    ray: Any, running: dict[Any, Job], settings_hash: str, stop: StopSignalError
+) -> list[JobRecord]:
+    """Cancel the running jobs, wait for their workers to end, and leave each a consistent
+    record: ``done`` where it finished first, else ``failed`` naming the signal (redone by the
+    next run) - never ``running``."""
+    for ref in running:
+        ray.cancel(ref, force=True)
+    if running:
+        ray.wait(list(running), num_returns=len(running), timeout=10.0)
+    records = []
+    for job in running.values():
+        record = read_record(job)
+        if record is None or record.status != "done":
+            record = new_record(job, settings_hash, "failed")
+            record.error = f"interrupted ({stop})"
+            write_record(job, record)
+        records.append(record)
+    return records
 
 
 def _lost(job: Job, settings_hash: str, err: Exception) -> JobRecord:

@@ -10,10 +10,13 @@ leaves the results unchanged.
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
+import hashlib
 import os
 import resource
 import socket
+import stat
 import tempfile
 import time
 from dataclasses import dataclass
@@ -22,7 +25,7 @@ from typing import Any
 
 from densepeds.batch_plan import Job, JobRecord, Settings, new_record, write_record
 from densepeds.batch_plan import remove_partial_outputs as _remove_partial_outputs
-from densepeds.errors import DensePedsError
+from densepeds.errors import DensePedsError, ModelError
 from densepeds.runner import RunSpec, one_line, open_run, track_source
 
 DETECTOR_ROLE = "detector"
@@ -50,7 +53,15 @@ _LOADED: dict[tuple[Any, ...], Any] = {}
 
 def node_cache_dir() -> Path:
     """Where shipped models are kept on this node: one folder per Ray node in the temporary
-    folder (a local Ray's is removed when the batch ends)."""
+    folder (a local Ray's is removed when the batch ends), made if needed and checked to be
+    this user's alone (:class:`ModelError` if not)."""
+    path = node_cache_path()
+    _private_dir(path.parent)
+    return _private_dir(path)
+
+
+def node_cache_path() -> Path:
+    """:func:`node_cache_dir`'s path, neither made nor checked."""
     node = "local"
     try:
         import ray
@@ -60,6 +71,50 @@ def node_cache_dir() -> Path:
     except ImportError:
         pass
     return Path(tempfile.gettempdir()) / f"densepeds-batch-models-{os.getuid()}" / node
+
+
+def _private_dir(path: Path) -> Path:
+    """``path`` as a folder of this user's alone (made with mode 0700, or set to it): a folder
+    in the shared temporary folder that is a link, or owned by someone else, is refused."""
+    with contextlib.suppress(FileExistsError):
+        path.mkdir(mode=0o700)
+    st = os.lstat(path)
+    if not stat.S_ISDIR(st.st_mode):
+        raise ModelError(f"{path}: not a plain folder; refusing to keep models there")
+    if st.st_uid != os.getuid():
+        raise ModelError(
+            f"{path}: owned by uid {st.st_uid}, not by this user ({os.getuid()}); refusing to "
+            "use models kept there"
+        )
+    if stat.S_IMODE(st.st_mode) != 0o700:
+        os.chmod(path, 0o700)
+    return path
+
+
+# Files of the node cache whose sha256 this process checked: path -> (inode, size, mtime).
+_VERIFIED: dict[Path, tuple[int, int, int]] = {}
+
+
+def _has_model(local: Path, model: ShippedModel) -> bool:
+    """Whether ``local`` is a plain file of this user holding exactly ``model`` (its sha256),
+    checked once per process while the file stays unchanged."""
+    try:
+        st = os.lstat(local)
+    except FileNotFoundError:
+        return False
+    if not stat.S_ISREG(st.st_mode) or st.st_uid != os.getuid() or st.st_size != model.size:
+        return False
+    key = (st.st_ino, st.st_size, st.st_mtime_ns)
+    if _VERIFIED.get(local) == key:
+        return True
+    digest = hashlib.sha256()
+    with open(local, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    if digest.hexdigest() != model.sha256:
+        return False
+    _VERIFIED[local] = key
+    return True
 
 
 def use_cpus(threads: int) -> None:
@@ -95,18 +150,20 @@ class WorkerModels:
         if model.ref is None:
             return model.path
         local = node_cache_dir() / f"{model.sha256[:16]}-{model.name}"
-        local.parent.mkdir(parents=True, exist_ok=True)
         # One worker of the node copies the file; the others wait for it (a lock per model).
         with open(local.with_name(f".{local.name}.lock"), "w") as lock:
             fcntl.flock(lock, fcntl.LOCK_EX)
-            if not (local.is_file() and local.stat().st_size == model.size):
+            if not _has_model(local, model):
                 import ray
 
                 data = ray.get(model.ref[0])
+                if hashlib.sha256(data).hexdigest() != model.sha256:
+                    raise ModelError(f"{model.name}: the copy shipped to this node is damaged")
                 fd, tmp = tempfile.mkstemp(dir=local.parent, prefix=f".{local.name}.")
                 with os.fdopen(fd, "wb") as fh:
                     fh.write(data)
                 os.replace(tmp, local)
+                _VERIFIED.pop(local, None)
                 self.fetched.append(model.name)
         return str(local)
 

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
-from densepeds.errors import DensePedsError
+from densepeds.errors import DensePedsError, warnings_as_lines
 from densepeds.pipeline import DETECTORS, FEATURES, MOTIONS
 from densepeds.runner import (
     Interrupted,
@@ -480,7 +480,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     }
     prefix = f"densepeds {args.command}"
     try:
-        with termination_raises():
+        with termination_raises(), warnings_as_lines(prefix):
             return handlers[args.command](args)
     except DensePedsError as err:
         sys.stderr.write(f"{prefix}: error: {one_line(err)}\n")

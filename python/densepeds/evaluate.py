@@ -182,8 +182,36 @@ def _load_sequence(
             )
         gt, tracks = _cut(gt, rng.first, rng.last), _cut(tracks, rng.first, rng.last)
         length = rng.last - rng.first + 1
+        gt, tracks, length = _drop_empty_frames(gt, tracks, length)
         return _Seq(name, gt_file.resolve(), length, bench, tracks, gt)
-    return _Seq(name, gt_file.resolve(), length, bench, tracks, None, _coverage(gt, tracks, name))
+    warning = _coverage(gt, tracks, name)
+    kept_gt, tracks, kept = _drop_empty_frames(gt, tracks, length)
+    if kept == length:
+        return _Seq(name, gt_file.resolve(), length, bench, tracks, None, warning)
+    return _Seq(name, gt_file.resolve(), kept, bench, tracks, kept_gt, warning)
+
+
+def _drop_empty_frames(
+    gt: np.ndarray, tracks: np.ndarray, length: int
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """The rows renumbered over the frames that hold a gt or a tracks row, and their count.
+
+    trackeval allocates per frame of the declared length (a seqLength of 2^31 - 1 or one row at
+    frame 2e9 would need tens of GB); a frame with neither a gt nor a tracks row adds nothing to
+    any metric (CLEAR skips it without breaking a trajectory, HOTA and Identity count nothing in
+    it), so the evaluation runs over the frames the files hold and its memory follows them.
+    """
+    used = np.unique(np.concatenate([gt[:, 0], tracks[:, 0]])).astype(np.int64)
+    if len(used) == length:
+        return gt, tracks, length
+    renumber = lambda rows: _renumbered(rows, used)  # noqa: E731
+    return renumber(gt), renumber(tracks), max(len(used), 1)
+
+
+def _renumbered(rows: np.ndarray, used: np.ndarray) -> np.ndarray:
+    out = rows.copy()
+    out[:, 0] = np.searchsorted(used, rows[:, 0].astype(np.int64)) + 1
+    return out
 
 
 def _cut(rows: np.ndarray, first: int, last: int) -> np.ndarray:
@@ -313,7 +341,7 @@ def evaluate(
             else:
                 gt_path.parent.mkdir(parents=True, exist_ok=True)
                 gt_path.write_text(
-                    "".join(",".join(f"{v:.10g}" for v in row) + "\n" for row in s.gt.tolist()),
+                    "".join(",".join(f"{v:.17g}" for v in row) + "\n" for row in s.gt.tolist()),
                     encoding="utf-8",
                 )
             motio.write_tracks(root / "trackers" / _TRACKER / "data" / f"{s.name}.txt", s.tracks)

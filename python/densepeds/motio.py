@@ -56,6 +56,14 @@ FloatArray = npt.NDArray[np.float64]
 MAX_SEQ_LENGTH = 2**31 - 1
 # Largest track id a tracks file may hold (ids fit a 32-bit integer, as MOTChallenge tools assume).
 MAX_TRACK_ID = 2**31 - 1
+# Largest image width or height a seqinfo.ini may declare (pixels: 16K, above any camera).
+MAX_IMAGE_SIDE = 16384
+# Largest magnitude of a box coordinate or size in a MOTChallenge file (pixels): beyond it the
+# value is no position in any image (1e300 would overflow the tracker's float32 boxes).
+MAX_BOX_VALUE = 1e7
+# Largest magnitude of a detection score: min-max rescaling would squash every other score of
+# the file towards 0 under one absurd value (1e308).
+MAX_SCORE = 1e6
 
 
 @dataclass(frozen=True)
@@ -110,13 +118,23 @@ def read_seqinfo(seq_dir: str | os.PathLike[str]) -> SeqInfo:
         try:
             value = kind(raw)
         except ValueError as err:
-            raise InputError(f"{ini}: {key}={raw!r} is not a valid {kind.__name__}") from err
+            raise InputError(f"{where(key)}: {key}={raw!r} is not a valid {kind.__name__}") from err
         if kind in (int, float) and not (np.isfinite(float(value)) and value > 0):
-            raise InputError(f"{ini}: {key}={raw!r} must be positive")
+            raise InputError(f"{where(key)}: {key}={raw!r} must be positive")
         if kind is int and value > MAX_SEQ_LENGTH:
-            raise InputError(f"{ini}: {key}={raw} is too large (at most {MAX_SEQ_LENGTH})")
+            raise InputError(f"{where(key)}: {key}={raw} is too large (at most {MAX_SEQ_LENGTH})")
+        if key in ("imWidth", "imHeight") and value > MAX_IMAGE_SIDE:
+            raise InputError(f"{where(key)}: {key}={raw} is too large (at most {MAX_IMAGE_SIDE})")
         return value
 
+    def where(key: str) -> str:
+        return f"{ini}:{_ini_line(ini, key)}" if _ini_line(ini, key) else str(ini)
+
+    im_dir = str(field("imDir", str, "img1")).strip()
+    im_ext = str(field("imExt", str, ".jpg")).strip()
+    _confine_im_dir(seq_path, im_dir, where("imDir"))
+    if not re.fullmatch(r"\.?[A-Za-z0-9]{1,8}", im_ext):
+        raise InputError(f"{where('imExt')}: imExt={im_ext!r} is not a file extension like .jpg")
     return SeqInfo(
         # The name names output files (out/<name>.txt): never a path.
         name=safe_name(str(field("name", str, seq_path.name)), seq_path.name),
@@ -124,10 +142,45 @@ def read_seqinfo(seq_dir: str | os.PathLike[str]) -> SeqInfo:
         width=int(field("imWidth", int)),  # type: ignore[call-overload]
         height=int(field("imHeight", int)),  # type: ignore[call-overload]
         fps=float(field("frameRate", float)),  # type: ignore[arg-type]
-        im_dir=str(field("imDir", str, "img1")),
-        im_ext=str(field("imExt", str, ".jpg")),
+        im_dir=im_dir,
+        im_ext=im_ext,
         path=seq_path,
     )
+
+
+def _ini_line(ini: Path, key: str) -> int | None:
+    """The 1-based line of ``key=`` in an ini file (the last one, as configparser keeps), if any."""
+    try:
+        lines = ini.read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError):
+        return None
+    found = None
+    for no, line in enumerate(lines, 1):
+        m = re.match(r"\s*([^=:]+?)\s*[=:]", line)
+        if m and m.group(1).lower() == key.lower():
+            found = no
+    return found
+
+
+def _confine_im_dir(seq_path: Path, im_dir: str, where: str) -> None:
+    """Refuse an ``imDir`` that leaves the sequence folder: absolute, with ``..``, or a link out.
+
+    Images are read into the detector and the annotated video: a sequence may only show its own.
+    """
+    rel = Path(im_dir)
+    if not im_dir or rel.is_absolute() or im_dir.startswith(("/", "\\")) or ".." in rel.parts:
+        raise InputError(
+            f"{where}: imDir={im_dir!r} must be a folder inside the sequence folder "
+            "(relative, without '..')"
+        )
+    target = seq_path / rel
+    if target.exists():
+        root = seq_path.resolve()
+        if not target.resolve().is_relative_to(root):
+            raise InputError(
+                f"{where}: imDir={im_dir!r} leads out of the sequence folder "
+                f"(to {target.resolve()})"
+            )
 
 
 def _locate_bad_line(path: Path, lines: list[str], line_nos: list[int], ncols: int) -> DetFileError:
@@ -182,11 +235,21 @@ def read_mot_rows(
     if bad.any():
         no = nos[np.argmax(bad)]
         raise DetFileError(f"{p}:{no}: NaN or infinite value")
-    frames = data[:, 0]
-    bad = (frames < 1) | (frames != np.round(frames))
+    boxes = data[:, 2:6]
+    bad = (np.abs(boxes) > MAX_BOX_VALUE).any(axis=1)
     if bad.any():
         i = int(np.argmax(bad))
-        raise DetFileError(f"{p}:{nos[i]}: frame {frames[i]:g} is not a positive integer")
+        raise DetFileError(
+            f"{p}:{nos[i]}: box value beyond {MAX_BOX_VALUE:g} pixels in magnitude: "
+            f"{', '.join(f'{v:g}' for v in boxes[i])}"
+        )
+    frames = data[:, 0]
+    bad = (frames < 1) | (frames != np.round(frames)) | (frames > MAX_SEQ_LENGTH)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise DetFileError(
+            f"{p}:{nos[i]}: frame {frames[i]:g} is not an integer in 1..{MAX_SEQ_LENGTH}"
+        )
     return data, nos
 
 
@@ -265,6 +328,13 @@ def read_detections(
         score_scale(data[:, 6], normalize)  # still reject a bad ``normalize``
         return {}
     _check_sizes(path, data, nos)
+    bad = np.abs(data[:, 6]) > MAX_SCORE
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise DetFileError(
+            f"{path}:{nos[i]}: score {data[i, 6]:g} is beyond {MAX_SCORE:g} in magnitude"
+        )
+    _check_frame_counts(path, data[:, 0], nos)
     data[:, 6] = rescale_scores(data[:, 6], score_scale(data[:, 6], normalize))
     if min_score is not None:
         data = data[data[:, 6] >= min_score]
@@ -281,6 +351,25 @@ def read_detections(
         int(frames[s]): Detections(boxes[s:e], scores[s:e])
         for s, e in zip(starts, ends, strict=True)
     }
+
+
+def _check_frame_counts(
+    path: str | os.PathLike[str], frames: FloatArray, nos: npt.NDArray[np.int64]
+) -> None:
+    """DetFileError at the first row past the tracker's bound on detections in one frame."""
+    from densepeds._core import MAX_DETECTIONS_PER_FRAME
+
+    if len(frames) <= MAX_DETECTIONS_PER_FRAME:
+        return
+    uniq, counts = np.unique(frames, return_counts=True)
+    if counts.max() <= MAX_DETECTIONS_PER_FRAME:
+        return
+    frame = uniq[np.argmax(counts)]
+    rows = np.flatnonzero(frames == frame)
+    raise DetFileError(
+        f"{path}:{nos[rows[MAX_DETECTIONS_PER_FRAME]]}: frame {frame:.0f} has {len(rows)} "
+        f"detections; at most {MAX_DETECTIONS_PER_FRAME} a frame are tracked"
+    )
 
 
 def read_gt(path: str | os.PathLike[str]) -> FloatArray:
@@ -401,7 +490,7 @@ def _pid_alive(pid: int) -> bool:
 def _remove_stale_temps(path: Path) -> None:
     """Remove temporaries for ``path`` left by a process that was killed (``kill -9``)."""
     pattern = re.compile(
-        rf"\.{re.escape(path.name)}\.{_TEMP_TAG}-(\d+)-[0-9a-f]+{re.escape(path.suffix)}"
+        rf"\.{re.escape(_temp_stem(path))}\.{_TEMP_TAG}-(\d+)-[0-9a-f]+{re.escape(path.suffix)}"
     )
     try:
         entries = list(path.parent.iterdir())
@@ -412,6 +501,17 @@ def _remove_stale_temps(path: Path) -> None:
         if m and int(m.group(1)) != os.getpid() and not _pid_alive(int(m.group(1))):
             with contextlib.suppress(OSError):
                 entry.unlink()
+
+
+# Longest file name (bytes) on common file systems (ext4, XFS, APFS, NTFS in UTF-16 units).
+_NAME_MAX = 255
+
+
+def _temp_stem(path: Path) -> str:
+    """``path``'s name as its temporaries carry it: shortened so that the temporary's name fits
+    :data:`_NAME_MAX` bytes whenever ``path``'s own name does."""
+    room = _NAME_MAX - len(f"..{_TEMP_TAG}-{2**32}-{'0' * 8}{path.suffix}".encode())
+    return path.name.encode()[: max(room, 1)].decode(errors="ignore")
 
 
 def reserve_temp(path: str | os.PathLike[str]) -> Path:
@@ -436,7 +536,7 @@ def reserve_temp(path: str | os.PathLike[str]) -> Path:
         _remove_stale_temps(out)
         while True:
             tmp = out.parent / (
-                f".{out.name}.{_TEMP_TAG}-{os.getpid()}-{secrets.token_hex(4)}{out.suffix}"
+                f".{_temp_stem(out)}.{_TEMP_TAG}-{os.getpid()}-{secrets.token_hex(4)}{out.suffix}"
             )
             try:
                 fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)

@@ -22,7 +22,7 @@ import numpy as np
 import numpy.typing as npt
 
 from densepeds.boxes import box_area, intersections, iou_matrix
-from densepeds.errors import InputError, ParameterError
+from densepeds.errors import InputError, ParameterError, warn_input
 from densepeds.frames import check_frame
 from densepeds.presets import Preset, get_preset, preset_for
 from densepeds.segment import FEATURES as CROP_FEATURES
@@ -235,6 +235,7 @@ class Pipeline:
         self._detector_model = detector_model
         self._detector_options = dict(detector_options or {})
         self._frame_detections = Detections.empty()  # the last frame's, for run_frames
+        self._capped_frames = 0  # frames whose detector output was cut to the tracker's bound
         self._reid_spec = reid
         self._reid: Embedder | None = reid if hasattr(reid, "embed") else None  # type: ignore[assignment]
         options = {k: tracker_params.pop(k) for k in DETECTION_OPTIONS if k in tracker_params}
@@ -311,6 +312,23 @@ class Pipeline:
             self._detector.reset()
         self.times = StageTimes()
 
+    def _at_most_tracked(self, detections: Detections) -> Detections:
+        """A detector's output cut to the most confident ``MAX_DETECTIONS_PER_FRAME`` (the most
+        the tracker takes in a frame), with a warning the first time."""
+        from densepeds._core import MAX_DETECTIONS_PER_FRAME
+
+        most = MAX_DETECTIONS_PER_FRAME
+        if len(detections) <= most:
+            return detections
+        if self._capped_frames == 0:
+            warn_input(
+                f"the detector found {len(detections)} people in one frame; the {most} most "
+                "confident are tracked (said once)"
+            )
+        self._capped_frames += 1
+        top = np.argsort(-detections.scores, kind="stable")[:most]
+        return detections.subset(np.sort(top))
+
     def process(
         self,
         frame: Image | None = None,
@@ -325,7 +343,7 @@ class Pipeline:
             if frame is None:
                 raise InputError("step() needs a frame, detections, or both")
             with self.times.stage("detection"):
-                detections = self.detector()(frame)
+                detections = self._at_most_tracked(self.detector()(frame))
         elif not isinstance(detections, Detections):
             raise InputError(f"detections must be densepeds.Detections, got {type(detections)}")
         self._frame_detections = detections  # as found or given, before the pipeline's filter
@@ -481,7 +499,7 @@ class Pipeline:
         if detections is not None:
             if isinstance(detections, Mapping):
                 return detections
-            return read_detections(detections)
+            return _checked_against(src, read_detections(detections), detections)
         if self.has_detector:
             if not getattr(src, "has_images", True):
                 raise InputError(f"{src.name}: has no images to run a detector on")
@@ -491,7 +509,43 @@ class Pipeline:
             return own
         det_path = getattr(src, "det_path", None)
         if det_path is not None:
-            return read_detections(det_path)
+            return _checked_against(src, read_detections(det_path), det_path)
         raise InputError(
             f"{src.name}: no detections: give a det file (--detections) or a detector (--detector)"
         )
+
+
+def _checked_against(
+    src: FrameSource, dets: dict[int, Detections], path: str | os.PathLike[str]
+) -> dict[int, Detections]:
+    """``dets`` of a det file, with a warning (never silently) for what the source drops or
+    reinterprets: detections past its last frame, and detections centred well outside its
+    image (a declared image size smaller than the detections' frame)."""
+    length = getattr(src, "length", None)
+    if length is not None:
+        late = [k for k in dets if k > length]
+        if late:
+            count = sum(len(dets[k]) for k in late)
+            warn_input(
+                f"{path}: {count} detections in frames {min(late)}-{max(late)} lie past the "
+                f"sequence's {length} frames (seqLength) and are not tracked"
+            )
+    size = getattr(src, "size", None)
+    if size is not None:
+        width, height = size
+        outside = 0
+        for d in dets.values():
+            cx = 0.5 * (d.boxes[:, 0] + d.boxes[:, 2])
+            cy = 0.5 * (d.boxes[:, 1] + d.boxes[:, 3])
+            # People walking out are centred just past the border; a tenth of the image beyond
+            # it, the declared size is not the detections' frame.
+            far_x = (cx < -0.1 * width) | (cx > 1.1 * width)
+            far_y = (cy < -0.1 * height) | (cy > 1.1 * height)
+            outside += int(np.count_nonzero(far_x | far_y))
+        if outside:
+            warn_input(
+                f"{path}: {outside} detections are centred outside the {width}x{height} image "
+                "(imWidth x imHeight) by more than a tenth of it; tracks there are reported as "
+                "leaving the image"
+            )
+    return dets

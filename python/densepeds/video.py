@@ -21,7 +21,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from densepeds.errors import InputError, OutputError, ParameterError
+from densepeds.errors import InputError, OutputError, ParameterError, warn_input
 from densepeds.video_encoder import CODEC_NAMES, FrameEncoder, open_encoder, quiet_stderr
 
 __all__ = [
@@ -233,8 +233,19 @@ class ImageFolderSource(FrameSource):
     def frames(self, rng: FrameRange | None = None) -> Iterator[tuple[int, Image | None]]:
         rng = (rng or FrameRange()).clip(len(self.files))
         assert rng.last is not None
+        size: tuple[int, int] | None = None
         for frame_no in range(rng.first, rng.last + 1):
-            yield frame_no, _read_image(self.files[frame_no - 1])
+            image = _read_image(self.files[frame_no - 1])
+            shape = (image.shape[1], image.shape[0])
+            if size is None:
+                size = shape
+            elif shape != size:
+                warn_input(
+                    f"{self.files[frame_no - 1]}: {shape[0]}x{shape[1]}, but the frames before "
+                    f"it are {size[0]}x{size[1]}; each image is tracked in its own pixels"
+                )
+                size = shape
+            yield frame_no, image
 
 
 class SequenceSource(FrameSource):

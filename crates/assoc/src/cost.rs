@@ -238,6 +238,11 @@ fn dot_lanes(a: &[f32], b: &[f32]) -> f32 {
 /// enough to track (at 1e154 and beyond, areas overflow to infinity).
 pub const MAX_COORDINATE: f64 = 1e150;
 
+/// Most detections one tracker frame takes. Far above any crowd a camera frame holds, it bounds
+/// the work and memory of a frame whose detections all overlap (the gated pairs grow with
+/// tracks x detections): such a frame is refused with one clear error instead.
+pub const MAX_DETECTIONS_PER_FRAME: usize = 2000;
+
 /// Checks a flat `[x1, y1, x2, y2]*` array: finite, within [`MAX_COORDINATE`], not inverted.
 /// Returns the number of boxes.
 pub fn validate_boxes(flat: &[f64]) -> Result<usize, crate::TrackError> {

@@ -157,13 +157,22 @@ pub struct Edge {
     pub cost: f64,
 }
 
+/// Largest component (rows x columns) solved on a dense matrix; a larger one is solved on its
+/// edges alone, so memory follows the gated pairs rather than the component's square.
+pub const DENSE_COMPONENT_MAX: usize = 1 << 16;
+
 /// Partial matching on a sparse set of allowed pairs: minimises `sum(cost - limit)` over the chosen
 /// pairs, so a pair is used only when it beats leaving its row and column unmatched (the
 /// `cost_limit` idea of LAPJV). Independent groups of rows/columns (connected components of the
-/// allowed pairs) are solved separately, which keeps sparse, gated crowds cheap.
-#[derive(Default, Debug, Clone)]
+/// allowed pairs) are solved separately, which keeps sparse, gated crowds cheap. A small component
+/// is solved on a dense matrix; one of more than [`DENSE_COMPONENT_MAX`] cells by shortest
+/// augmenting paths over its edges (a binary heap instead of a scan of every column), whose
+/// memory is linear in the edges.
+#[derive(Debug, Clone)]
 pub struct SparseMatcher {
+    dense_max: usize,
     ws: LapWorkspace,
+    sparse: SparseWorkspace,
     parent: Vec<usize>,
     order: Vec<usize>,
     rows: Vec<usize>,
@@ -171,6 +180,12 @@ pub struct SparseMatcher {
     local_row: Vec<usize>,
     local_col: Vec<usize>,
     dense: Vec<f64>,
+}
+
+impl Default for SparseMatcher {
+    fn default() -> Self {
+        Self::with_dense_limit(DENSE_COMPONENT_MAX)
+    }
 }
 
 fn find(parent: &mut [usize], mut x: usize) -> usize {
@@ -182,6 +197,23 @@ fn find(parent: &mut [usize], mut x: usize) -> usize {
 }
 
 impl SparseMatcher {
+    /// A matcher that solves components of at most `cells` rows x columns densely (the default is
+    /// [`DENSE_COMPONENT_MAX`]); 0 solves every component on its edges (for tests).
+    pub fn with_dense_limit(cells: usize) -> Self {
+        Self {
+            dense_max: cells,
+            ws: LapWorkspace::default(),
+            sparse: SparseWorkspace::default(),
+            parent: Vec::new(),
+            order: Vec::new(),
+            rows: Vec::new(),
+            cols: Vec::new(),
+            local_row: Vec::new(),
+            local_col: Vec::new(),
+            dense: Vec::new(),
+        }
+    }
+
     /// Matches `n_rows` rows and `n_cols` columns using only `edges` (costs finite, at most one
     /// edge per pair) and returns `(row, col)` pairs sorted by row.
     pub fn solve(
@@ -261,6 +293,25 @@ impl SparseMatcher {
             }
         }
         let (nr, nc) = (self.rows.len(), self.cols.len());
+        if nr.saturating_mul(nc) > self.dense_max {
+            let (local_row, local_col) = (&self.local_row, &self.local_col);
+            let assigned = self.sparse.solve(
+                nr,
+                nc,
+                group.iter().map(|&k| {
+                    let e = edges[k];
+                    (local_row[e.row], local_col[e.col], e.cost)
+                }),
+                limit,
+            );
+            for (i, &j) in assigned.iter().enumerate() {
+                if j < nc {
+                    out.push((self.rows[i], self.cols[j]));
+                }
+            }
+            self.clear_locals();
+            return;
+        }
         self.dense.clear();
         self.dense.resize(nr * nc, f64::INFINITY);
         for &k in group {
@@ -286,11 +337,184 @@ impl SparseMatcher {
                 out.push((self.rows[i], self.cols[j]));
             }
         }
+        self.clear_locals();
+    }
+
+    fn clear_locals(&mut self) {
         for &r in &self.rows {
             self.local_row[r] = NONE;
         }
         for &c in &self.cols {
             self.local_col[c] = NONE;
         }
+    }
+}
+
+/// A heap entry: reduced distance, then free columns first (they end the search), then index.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Reached {
+    dist: f64,
+    taken: bool,
+    col: usize,
+}
+
+impl Eq for Reached {}
+
+impl Ord for Reached {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        // Reversed: `BinaryHeap` is a max-heap and the search wants the nearest column.
+        other
+            .dist
+            .total_cmp(&self.dist)
+            .then(other.taken.cmp(&self.taken))
+            .then(other.col.cmp(&self.col))
+    }
+}
+
+impl PartialOrd for Reached {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+/// Shortest augmenting paths on an edge list: the partial matching of one component, where row
+/// `i` may also take its private "unmatched" column `nc + i` at cost `limit`.
+#[derive(Default, Debug, Clone)]
+struct SparseWorkspace {
+    start: Vec<usize>,
+    adj: Vec<(usize, f64)>,
+    u: Vec<f64>,
+    v: Vec<f64>,
+    dist: Vec<f64>,
+    done: Vec<bool>,
+    path: Vec<usize>,
+    col4row: Vec<usize>,
+    row4col: Vec<usize>,
+    touched: Vec<usize>,
+    visited_rows: Vec<usize>,
+    visited_cols: Vec<usize>,
+    heap: std::collections::BinaryHeap<Reached>,
+}
+
+impl SparseWorkspace {
+    /// Column of each of `nr` rows: `< nc` a real column, `nc + i` unmatched. `edges` are
+    /// `(row, col, cost)` in local indices with finite costs.
+    fn solve(
+        &mut self,
+        nr: usize,
+        nc: usize,
+        edges: impl Iterator<Item = (usize, usize, f64)> + Clone,
+        limit: f64,
+    ) -> &[usize] {
+        // Compressed rows: row i's edges are adj[start[i]..start[i + 1]].
+        self.start.clear();
+        self.start.resize(nr + 1, 0);
+        for (r, _, _) in edges.clone() {
+            self.start[r + 1] += 1;
+        }
+        for i in 0..nr {
+            self.start[i + 1] += self.start[i];
+        }
+        self.adj.clear();
+        self.adj.resize(self.start[nr], (0, 0.0));
+        let mut fill = self.start[..nr].to_vec();
+        for (r, c, cost) in edges {
+            self.adj[fill[r]] = (c, cost);
+            fill[r] += 1;
+        }
+        let m = nc + nr;
+        self.u.clear();
+        self.u.resize(nr, 0.0);
+        self.v.clear();
+        self.v.resize(m, 0.0);
+        self.col4row.clear();
+        self.col4row.resize(nr, NONE);
+        self.row4col.clear();
+        self.row4col.resize(m, NONE);
+        self.dist.clear();
+        self.dist.resize(m, f64::INFINITY);
+        self.done.clear();
+        self.done.resize(m, false);
+        self.path.clear();
+        self.path.resize(m, NONE);
+
+        for cur_row in 0..nr {
+            // Dijkstra over the residual graph from `cur_row`; row `cur_row`'s private column is
+            // free, so the search always ends.
+            self.touched.clear();
+            self.visited_rows.clear();
+            self.visited_cols.clear();
+            self.heap.clear();
+            let mut min_val = 0.0;
+            let mut i = cur_row;
+            let sink = loop {
+                self.visited_rows.push(i);
+                let ui = self.u[i];
+                let private = (nc + i, limit);
+                for &(j, c) in self.adj[self.start[i]..self.start[i + 1]]
+                    .iter()
+                    .chain(std::iter::once(&private))
+                {
+                    if self.done[j] {
+                        continue;
+                    }
+                    let r = min_val + c - ui - self.v[j];
+                    if r < self.dist[j] {
+                        if self.dist[j] == f64::INFINITY {
+                            self.touched.push(j);
+                        }
+                        self.dist[j] = r;
+                        self.path[j] = i;
+                        self.heap.push(Reached {
+                            dist: r,
+                            taken: self.row4col[j] != NONE,
+                            col: j,
+                        });
+                    }
+                }
+                let j = loop {
+                    let top = self
+                        .heap
+                        .pop()
+                        .expect("the private column of the row searched from is reachable");
+                    if !self.done[top.col] && top.dist == self.dist[top.col] {
+                        break top.col;
+                    }
+                };
+                min_val = self.dist[j];
+                self.done[j] = true;
+                self.visited_cols.push(j);
+                if self.row4col[j] == NONE {
+                    break j;
+                }
+                i = self.row4col[j];
+            };
+
+            // Dual update keeps reduced costs non-negative and zero along the matching.
+            self.u[cur_row] += min_val;
+            for &r in &self.visited_rows[1..] {
+                self.u[r] += min_val - self.dist[self.col4row[r]];
+            }
+            for &c in &self.visited_cols {
+                self.v[c] -= min_val - self.dist[c];
+            }
+
+            // Augment along the path back to `cur_row`.
+            let mut j = sink;
+            loop {
+                let r = self.path[j];
+                self.row4col[j] = r;
+                let prev = std::mem::replace(&mut self.col4row[r], j);
+                if r == cur_row {
+                    break;
+                }
+                j = prev;
+            }
+            for &j in &self.touched {
+                self.dist[j] = f64::INFINITY;
+                self.done[j] = false;
+            }
+        }
+        &self.col4row
     }
 }

@@ -19,7 +19,7 @@
 //! being predicted among their neighbours and reported, those that left the image are deleted.
 
 use crate::amodal_width::widen_occluded;
-use crate::cost::{centre, iou, normalise_rows, validate_boxes, BBox};
+use crate::cost::{centre, iou, normalise_rows, validate_boxes, BBox, MAX_DETECTIONS_PER_FRAME};
 use crate::crowd_aspect::CrowdAspect;
 use crate::jitter::JitterEstimate;
 use crate::lap::{Edge, SparseMatcher};
@@ -199,14 +199,22 @@ impl Tracker {
     ) -> Result<usize, TrackError> {
         use TrackError::InvalidInput;
         let n = validate_boxes(boxes)?;
+        if n > MAX_DETECTIONS_PER_FRAME {
+            return Err(InvalidInput(format!(
+                "{n} detections in one frame; at most {MAX_DETECTIONS_PER_FRAME} a frame are tracked"
+            )));
+        }
         if scores.len() != n {
             return Err(InvalidInput(format!(
                 "{n} boxes but {} scores",
                 scores.len()
             )));
         }
-        if let Some(k) = scores.iter().position(|s| s.is_nan()) {
-            return Err(InvalidInput(format!("score {k} is NaN")));
+        if let Some(k) = scores.iter().position(|s| !s.is_finite()) {
+            return Err(InvalidInput(format!(
+                "score {k} is not finite: {}",
+                scores[k]
+            )));
         }
         if let Some(e) = emb {
             if e.dim == 0 {

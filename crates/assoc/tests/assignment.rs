@@ -118,3 +118,51 @@ fn known_small_case() {
         vec![(0, 1), (1, 0)]
     );
 }
+
+/// Random gated pairs among `n` rows and `m` columns, dense or thin.
+fn edges_strategy() -> impl Strategy<Value = (usize, usize, Vec<Edge>, f64)> {
+    (1usize..=7, 1usize..=7, 0.05f64..1.0, 1.0f64..120.0).prop_flat_map(|(n, m, p, limit)| {
+        let cell = (0.0f64..1.0, 0u32..130).prop_map(move |(keep, c)| (keep < p, f64::from(c)));
+        (
+            Just(n),
+            Just(m),
+            prop::collection::vec(cell, n * m),
+            Just(limit),
+        )
+            .prop_map(|(n, m, cells, limit)| {
+                let edges = cells
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, &(keep, _))| keep)
+                    .map(|(k, &(_, cost))| Edge {
+                        row: k / m,
+                        col: k % m,
+                        cost,
+                    })
+                    .collect();
+                (n, m, edges, limit)
+            })
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(2000))]
+
+    /// The edge-list solver (every component forced onto it) is optimal too.
+    #[test]
+    fn sparse_path_matches_brute_force((n, m, edges, limit) in edges_strategy()) {
+        let mut gated = vec![INF; n * m];
+        for e in &edges {
+            gated[e.row * m + e.col] = e.cost;
+        }
+        let pairs = SparseMatcher::with_dense_limit(0).solve(n, m, &edges, limit);
+        check_pairs_distinct(&pairs);
+        let total: f64 = pairs.iter().map(|&(i, j)| gated[i * m + j] - limit).sum();
+        prop_assert!(total.is_finite(), "used a pair without an edge: {:?}", pairs);
+        let best = brute_partial(&gated, n, m, limit);
+        prop_assert!((total - best).abs() < 1e-9, "total {} vs brute {}", total, best);
+        let dense = SparseMatcher::with_dense_limit(usize::MAX).solve(n, m, &edges, limit);
+        let dense_total: f64 = dense.iter().map(|&(i, j)| gated[i * m + j] - limit).sum();
+        prop_assert!((total - dense_total).abs() < 1e-9);
+    }
+}

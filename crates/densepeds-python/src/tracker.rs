@@ -377,6 +377,10 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyTracker>()?;
     m.add("PARAMS", param_table(m.py())?)?;
     m.add("PURE_PARAMS", pure_params(m.py())?)?;
+    m.add(
+        "MAX_DETECTIONS_PER_FRAME",
+        assoc::cost::MAX_DETECTIONS_PER_FRAME,
+    )?;
     m.add_function(wrap_pyfunction!(linear_sum_assignment, m)?)?;
     m.add_function(wrap_pyfunction!(iou_matrix, m)?)?;
     m.add_function(wrap_pyfunction!(cosine_distance_matrix, m)?)?;

@@ -39,6 +39,9 @@ from densepeds.errors import ModelError, ParameterError
 from densepeds.frames import check_frame
 from densepeds.types import Detections
 
+# Models whose non-finite output was reported (once each).
+_NONFINITE_WARNED: set[object] = set()
+
 EXPECTED = (
     "a Mask R-CNN ONNX model: input float [3,H,W]; outputs boxes [N,4], labels [N], scores "
     "[N], masks [N,1,h,w] (the ONNX Model Zoo's MaskRCNN-12 files, `densepeds models fetch`, "
@@ -148,7 +151,8 @@ class MaskRCNNDetector:
             scale = np.ones(4)
         boxes, labels, scores, masks = self._outputs(x)
         keep = (labels == self.person_label) & (scores >= self.score_threshold)
-        keep &= np.isfinite(boxes).all(axis=1)
+        rows = np.concatenate([boxes[keep], scores[keep].reshape(-1, 1)], axis=1)
+        keep = np.flatnonzero(keep)[onnxutil.finite_rows(rows, self.path, _NONFINITE_WARNED)]
         return boxes[keep].astype(np.float64) / scale, scores[keep], list(masks[keep][:, 0])
 
     def __call__(self, frame: npt.NDArray[np.uint8]) -> Detections:

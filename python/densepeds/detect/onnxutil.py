@@ -775,3 +775,22 @@ def _fold_dequantize(node: onnx.NodeProto, inits: dict[str, onnx.TensorProto]) -
         shape[axis] = -1
         scale, zero = scale.reshape(shape), zero.reshape(shape)
     return numpy_helper.from_array(((q - zero) * scale).astype(np.float32), node.output[0])
+
+
+def finite_rows(rows: np.ndarray, model: object, warned: set[object]) -> np.ndarray:
+    """Boolean [N]: the rows of a detector's output [N, C] whose values are all finite.
+
+    A model that outputs NaN or infinite boxes or scores (a broken export, an fp16 overflow)
+    has those rows dropped, never silently: the first time for each ``model`` (a path; tracked
+    in ``warned``) an :class:`~densepeds.errors.InputWarning` says how many.
+    """
+    from densepeds.errors import warn_input
+
+    ok = np.isfinite(rows).all(axis=tuple(range(1, rows.ndim)))
+    if not ok.all() and model not in warned:
+        warned.add(model)
+        warn_input(
+            f"{model}: the detector output {int(np.count_nonzero(~ok))} of {len(rows)} "
+            "detections with NaN or infinite values; such detections are dropped"
+        )
+    return ok

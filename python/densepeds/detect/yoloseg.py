@@ -38,6 +38,9 @@ from densepeds.frames import check_frame
 from densepeds.modelfiles import quantized_file_name
 from densepeds.types import Detections
 
+# Models whose non-finite output was reported (once each).
+_NONFINITE_WARNED: set[object] = set()
+
 LETTERBOX_GREY = 114
 MIN_FOCUS_SIDE = 8  # pixels: a focus view cut smaller than this by the frame's edge is skipped
 # Views per thread letterboxed, run in one onnxruntime call and reduced to their candidates at
@@ -469,7 +472,9 @@ class YoloSegDetector:
         if self.pred_transposed:
             preds = preds.transpose(0, 2, 1)
         view_idx, anchor_idx = np.nonzero(preds[:, 4 + self.person_class, :] > self.score_threshold)
-        return _Picked(view_idx + first_view, preds[view_idx, :, anchor_idx])
+        rows = preds[view_idx, :, anchor_idx]
+        ok = onnxutil.finite_rows(rows, self.path, _NONFINITE_WARNED)
+        return _Picked(view_idx[ok] + first_view, rows[ok])
 
     def _merge(self, picked: _Picked, views: list[_View], width: int, height: int) -> Candidates:
         """The picked anchors as frame boxes, merged across the views."""

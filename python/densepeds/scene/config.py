@@ -6,6 +6,12 @@ from dataclasses import dataclass
 
 from densepeds.errors import ParameterError
 
+# Most frames the scene simulates (2.8 hours at 10 fps): its trajectories and ground truth are
+# held in memory, so a larger count is refused rather than exhausting it.
+MAX_SCENE_FRAMES = 100_000
+# Largest image side the scene draws (pixels).
+MAX_SCENE_SIDE = 8192
+
 
 @dataclass(frozen=True)
 class SceneConfig:
@@ -37,6 +43,14 @@ class SceneConfig:
     def check(self) -> None:
         if self.frames < 1 or self.groups < 1 or self.group_size[0] < 1:
             raise ParameterError("scene needs at least one frame, one group and one person")
+        if self.frames > MAX_SCENE_FRAMES:
+            raise ParameterError(
+                f"scene: {self.frames} frames is too many (at most {MAX_SCENE_FRAMES})"
+            )
+        if not (16 <= self.width <= MAX_SCENE_SIDE and 16 <= self.height <= MAX_SCENE_SIDE):
+            raise ParameterError(
+                f"scene: image size {self.width}x{self.height} is outside 16..{MAX_SCENE_SIDE}"
+            )
         if self.group_size[1] < self.group_size[0] or self.fps <= 0 or self.group_density <= 0:
             raise ParameterError("scene: bad group size, fps or density")
         if self.mask_shift < 0:
