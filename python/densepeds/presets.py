@@ -109,10 +109,9 @@ _CNN_APPEARANCE: dict[str, float | int | bool] = {
     # A COCO-trained segmenter boxes what shows, narrower than the whole person the ground truth
     # annotates (a side or the arms hidden by the people around, or just a tight box): a matched
     # person is reported at least as wide as the 70% quantile of the matched boxes' aspect
-    # ratios, covered by a nearer person or not (coverage 0). Both on the four video cells,
-    # checked by leave-one-out (benchmarks/results/accuracy-loo.md).
+    # ratios, covered by a nearer person or not. Chosen on the four video cells, checked by
+    # leave-one-out (benchmarks/results/accuracy-loo.md).
     "amodal_width_quantile": 0.7,
-    "amodal_width_coverage": 0.0,
     # A segmenter finds a person it saw with confidence again with confidence: a tentative track
     # ends at its first miss (the weak-detection wait, tentative_max_age, helps sparse det files).
     "tentative_max_age": 0,

@@ -7,7 +7,7 @@
 //! A value outside its range is rejected with [`TrackError::InvalidParameter`]; every value
 //! inside it is used as given (nothing is clamped or replaced further down).
 
-use crate::score_scale::{ScoreScale, SCORE_SCALE_NAMES};
+use crate::score_scale::{ScoreCuts, ScoreReading, ScoreScale, SCORE_SCALE_NAMES};
 use crate::TrackError;
 use frvo::{MotionKind, MotionParams};
 
@@ -431,8 +431,6 @@ tracker_params! {
             "tracks unmatched up to this many frames join the second pass (0: ByteTrack's rule)";
         recovery: bool = true, Range::Bool,
             "OC-SORT-style re-match of unmatched tracks by IoU of their last observed box";
-        recovery_iou_threshold: f64 = 0.3, UNIT,
-            "smallest IoU for a recovery match";
         velocity_smoothing: f64 = 0.5, UNIT,
             "weight of the newly observed velocity in the velocity average (1: no smoothing)";
         pref_window: usize = 20, ints(1, USIZE_MAX),
@@ -453,22 +451,14 @@ tracker_params! {
             "confirmed tracks are also reported, at their prediction, this many frames unmatched";
         output_lost_adaptive: bool = true, Range::Bool,
             "report a lost track at gap t (output_lost, occluded_output) only while, on this sequence so far, lost tracks (occluded and in the open counted apart) were re-found at their predicted box (IoU >= 0.5) at least as often as not";
-        output_lost_precision: f64 = 0.33, UNIT,
-            "with output_lost_adaptive: the share of gaps re-found at the prediction needed to report a lost track (a box that is a hit with probability p raises HOTA's DetA where p > DetA / (1 + DetA), 1/3 at DetA 0.5; 0.5 for MOTA)";
         occluded_output: u32 = 10, ints(0, U32_MAX),
-            "an unmatched track covered by nearer detections is reported up to this many frames; one whose predicted box is less than left_image_inside inside the image (set_image_size) is deleted (0: off)";
-        occlusion_coverage: f64 = 0.5, UNIT,
-            "covered fraction of an unmatched track's predicted box that means occluded";
-        coast_damping: f64 = 1.0, UNIT,
-            "an unmatched track's preferred velocity is multiplied by this for every frame it stays unmatched (1: kept)";
+            "an unmatched track covered by nearer detections is reported up to this many frames; one whose predicted box has less than 90% of its area inside the image (set_image_size) has left it and is deleted (0: off)";
         coast_aspect: bool = true, Range::Bool,
             "an unmatched track's reported box is at least as wide as its matched detections' mean aspect ratio (width over height, over the last 30 matches) makes its height (an occluded person's last boxes are cut narrow)";
         coast_aspect_state: bool = false, Range::Bool,
             "with coast_aspect, the unmatched track's own width widens too, and with it the predicted box it is matched by (not only the reported box)";
         amodal_boxes: bool = false, Range::Bool,
             "a reported box whose lower part is hidden behind a nearer reported box is extended down to the height the fitted perspective expects from its top row (the whole person, as MOTChallenge annotates)";
-        ground_plane: bool = false, Range::Bool,
-            "motion on the ground: the motion model steps feet in ground coordinates from a perspective fitted online (box height vs foot row), boxes scale with depth; image space until a fit holds";
         motion_person_height: f64 = 160.0, closed_open(0.0, f64::INFINITY),
             "the motion model's lengths (neighbor_radius, max_speed, sf_range, sf_strength) are pixels on a person this tall: each frame the crowd is scaled so that the median track box height (on the ground plane: the fitted height at the reference row) is this, so one setting means the same on every image scale (0: image pixels)";
         tentative_max_age: u32 = 2, ints(0, U32_MAX),
@@ -476,17 +466,11 @@ tracker_params! {
         coast_aspect_quantile: f64 = 0.0, UNIT,
             "a lost track's reported box is at least as wide as this quantile of the aspect ratios (width over height) of every track's matched detections (the last 2000) makes its height: the width of a person seen whole in this scene (0: off)";
         amodal_width_quantile: f64 = 0.0, UNIT,
-            "a matched track's reported box covered at least amodal_width_coverage by reported boxes nearer the camera (lower foot point) is at least as wide as this quantile of the aspect ratios of every track's matched detections makes its height: a person seen in part reported at the width of one seen whole, as MOTChallenge annotates them (reporting only; 0: off)";
-        amodal_width_coverage: f64 = 0.1, UNIT,
-            "covered fraction (by reported boxes nearer the camera) of a matched track's reported box that widens it (amodal_width_quantile; 0: every matched box, covered or not)";
+            "a matched track's reported box is at least as wide as this quantile of the aspect ratios of every track's matched detections makes its height: a person seen in part, or boxed tighter than the annotation's whole person, reported at the width of one seen whole (reporting only; 0: off)";
         coast_min_hits: u32 = 6, ints(0, U32_MAX),
             "an unmatched track is reported (output_lost, occluded_output) only once it has been matched at least this many times (a young track lost at once is more often a false detection than a person; 0: off)";
         reid_newborn: u32 = 4, ints(0, U32_MAX),
-            "deferred re-identification: when a track born while confirmed tracks were lost reaches this many matches (at least n_init), the mean of its embeddings so far is compared with those lost tracks' galleries; the nearest, if within min(appearance_threshold, appearance_apart) and nearer than every other by reid_margin, gives the new track its id from that frame on and ends (0: off)";
-        reid_margin: f64 = 0.15, closed(0.0, 2.0),
-            "reid_newborn: how much nearer in cosine distance the chosen lost track must be than every other lost track";
-        left_image_inside: f64 = 0.9, UNIT,
-            "an unmatched confirmed track whose predicted box has less than this share of its area inside the image has left it and is deleted (with the image size given and occluded_output > 0; so never in the pure method)";
+            "deferred re-identification: when a track born while confirmed tracks were lost reaches this many matches (at least n_init), the mean of its embeddings so far is compared with those lost tracks' galleries; the nearest, if within min(appearance_threshold, appearance_apart) and nearer than every other by 0.15, gives the new track its id from that frame on and ends (0: off)";
     }
     motion {
         neighbor_radius: f64, POSITIVE,
@@ -513,6 +497,67 @@ tracker_params! {
 /// The row of the named parameter.
 pub fn spec(name: &str) -> Option<&'static ParamSpec> {
     PARAMS.iter().find(|p| p.name == name)
+}
+
+/// The named blocks: each crowd extension (or the motion model's tuning) and its parameters,
+/// the first being its switch. A parameter in no block is a core one. The blocks are measured
+/// on and off in `benchmarks/results/blocks.md`; `docs/tracker.md` describes them.
+pub const BLOCKS: &[(&str, &[&str])] = &[
+    (
+        "second pass",
+        &["second_pass", "low_threshold", "low_iou_threshold", "low_max_age"],
+    ),
+    (
+        "score calibration",
+        &[
+            "score_quantile_floor",
+            "score_quantile_ceiling",
+            "thresholded_low_iou",
+            "score_scale",
+            "score_window",
+            "score_warm_up",
+        ],
+    ),
+    ("recovery", &["recovery"]),
+    ("occlusion-aware coasting", &["occluded_output"]),
+    ("adaptive lost reports", &["output_lost_adaptive"]),
+    ("young lost tracks hidden", &["coast_min_hits"]),
+    ("tentative tracks", &["tentative_max_age"]),
+    ("jitter smoothing", &["jitter_floor", "jitter_smoothing_state"]),
+    ("position smoothing", &["position_smoothing"]),
+    ("motion scale", &["motion_person_height"]),
+    (
+        "lost-box aspect",
+        &["coast_aspect", "coast_aspect_state", "coast_aspect_quantile"],
+    ),
+    ("amodal boxes", &["amodal_boxes"]),
+    ("amodal widths", &["amodal_width_quantile"]),
+    ("appearance apart", &["appearance_apart"]),
+    ("newborn re-ID", &["reid_newborn"]),
+    (
+        "motion model",
+        &[
+            "ellipse_l_scale",
+            "ellipse_w_scale",
+            "neighbor_radius",
+            "max_neighbors",
+            "time_horizon",
+            "max_speed",
+            "polygon_sides",
+            "sf_relaxation_time",
+            "sf_strength",
+            "sf_range",
+            "threads",
+        ],
+    ),
+];
+
+/// The block a parameter belongs to, `"core"` for the core parameters.
+pub fn group(name: &str) -> &'static str {
+    BLOCKS
+        .iter()
+        .find(|(_, names)| names.contains(&name))
+        .map_or("core", |(block, _)| block)
 }
 
 fn unknown(name: &str) -> TrackError {
@@ -555,6 +600,26 @@ impl TrackerParams {
             tentative_max_age: 0,
             reid_newborn: 0,
             ..Self::default()
+        }
+    }
+
+    /// How the score thresholds are read (the `score_*` parameters).
+    pub fn score_reading(&self) -> ScoreReading {
+        ScoreReading {
+            scale: self.score_scale,
+            window: self.score_window,
+            warm_up: self.score_warm_up,
+            quantile_floor: self.score_quantile_floor,
+            quantile_ceiling: self.score_quantile_ceiling,
+        }
+    }
+
+    /// The score thresholds as given (`det_threshold`, `new_track_threshold`, `low_threshold`).
+    pub fn score_thresholds(&self) -> ScoreCuts {
+        ScoreCuts {
+            det: self.det_threshold,
+            new_track: self.new_track_threshold,
+            low: self.low_threshold,
         }
     }
 
@@ -741,6 +806,18 @@ mod tests {
             ..MotionParams::default()
         };
         assert!(TrackerParams::validate_motion(&m).is_err());
+    }
+
+    #[test]
+    fn every_block_names_declared_parameters_and_the_core_is_small() {
+        for (block, names) in BLOCKS {
+            for name in *names {
+                assert!(spec(name).is_some(), "{block}: {name}");
+                assert_eq!(group(name), *block, "{name} in two blocks");
+            }
+        }
+        let core = PARAMS.iter().filter(|s| group(s.name) == "core").count();
+        assert!(core <= 15, "{core} core parameters");
     }
 
     #[test]

@@ -1,58 +1,27 @@
 //! One frame's prediction for every live track: all step together through the motion model
-//! (where crowd interaction enters), in image pixels or, with a fitted [`GroundMap`], with their
-//! feet on the ground plane, where a near person and a far one walking alike move alike.
+//! (where crowd interaction enters), in image pixels.
 //!
 //! With `motion_person_height` set, the crowd is scaled before the step so that a typical person
-//! is that many units tall (the median box height in image space, the fitted height at the
-//! reference row on the ground plane): the motion model's lengths (`neighbor_radius`,
-//! `max_speed`, the social-force range and strength) then mean the same on every image scale.
+//! (the median box height) is that many units tall: the motion model's lengths
+//! (`neighbor_radius`, `max_speed`, the social-force range and strength) then mean the same on
+//! every image scale.
 
 use crate::params::TrackerParams;
-use crate::perspective::GroundMap;
 use crate::track::Track;
 use frvo::{Agent, MotionModel};
 use nalgebra::Vector2;
 
 /// Sets every track's prediction for this frame.
-pub(crate) fn predict(
-    tracks: &mut [Track],
-    model: &mut dyn MotionModel,
-    p: &TrackerParams,
-    ground: Option<&GroundMap>,
-) {
+pub(crate) fn predict(tracks: &mut [Track], model: &mut dyn MotionModel, p: &TrackerParams) {
     if tracks.is_empty() {
         return;
     }
     let agents: Vec<Agent> = tracks.iter().map(|t| t.agent(p)).collect();
-    let Some(g) = ground else {
-        let u = units_per_pixel(p.motion_person_height, || median_height(tracks));
-        let vels = step_scaled(model, &agents, u);
-        for (k, t) in tracks.iter_mut().enumerate() {
-            let v = vels.get(k).copied().unwrap_or(t.pref_vel);
-            t.set_prediction(v, 1.0);
-        }
-        return;
-    };
-    let foot = |t: &Track| t.pos + Vector2::new(0.0, 0.5 * t.h);
-    let on_ground: Vec<Agent> = agents
-        .iter()
-        .zip(tracks.iter())
-        .map(|(a, t)| {
-            let f = foot(t);
-            let (j, s) = (g.jacobian(f), g.scale(f.y));
-            let pref = t.ground_pref_vel(g, p);
-            Agent::new(g.to_ground(f), j * a.vel, pref, a.l / s, a.w / s)
-        })
-        .collect();
-    let u = units_per_pixel(p.motion_person_height, || Some(g.reference_height()));
-    let vels = step_scaled(model, &on_ground, u);
+    let u = units_per_pixel(p.motion_person_height, || median_height(tracks));
+    let vels = step_scaled(model, &agents, u);
     for (k, t) in tracks.iter_mut().enumerate() {
-        let f = foot(t);
-        let v = vels.get(k).copied().unwrap_or(on_ground[k].pref_vel);
-        let next = g.to_image(on_ground[k].pos + v);
-        let scale = g.scale(next.y) / g.scale(f.y);
-        let centre = next - Vector2::new(0.0, 0.5 * scale * t.h);
-        t.set_prediction(centre - t.pos, scale);
+        let v = vels.get(k).copied().unwrap_or(t.pref_vel);
+        t.set_prediction(v, 1.0);
     }
 }
 

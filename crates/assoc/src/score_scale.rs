@@ -29,7 +29,6 @@
 //! The tracker converts its thresholds once per frame, after observing that frame's scores, and
 //! compares the raw scores with the converted cuts (a score passes a cut when `score >= cut`).
 
-use crate::params::TrackerParams;
 use std::collections::VecDeque;
 use std::str::FromStr;
 
@@ -68,6 +67,32 @@ impl FromStr for ScoreScale {
             )),
         }
     }
+}
+
+/// How the score thresholds are read: the `score_*` parameters of the tracker.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ScoreReading {
+    pub scale: ScoreScale,
+    /// Scores (the last ones seen) whose quantiles are read.
+    pub window: usize,
+    /// Scores to see before the lowest is the detector's floor or quantiles are used.
+    pub warm_up: usize,
+    /// `score_quantile_floor` (0: off).
+    pub quantile_floor: f64,
+    /// `score_quantile_ceiling` (0: off).
+    pub quantile_ceiling: f64,
+}
+
+/// The three score thresholds: as the caller gives them, or as raw cuts of one frame
+/// ([`ScoreScaler::cuts`]). A score passes a cut when `score >= cut`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ScoreCuts {
+    /// Detections from here take part in every matching stage (`det_threshold`).
+    pub det: f64,
+    /// Detections from here (and from `det`) may start a track (`new_track_threshold`).
+    pub new_track: f64,
+    /// The lowest score of the second pass (`low_threshold`).
+    pub low: f64,
 }
 
 /// The scores seen so far: their count, lowest and highest, and the last `window` of them.
@@ -153,7 +178,7 @@ impl ScoreScaler {
         }
     }
 
-    /// The score from which a detection of the last [`ScoreScaler::scaled`] call was confident
+    /// The score from which a detection of the last [`ScoreScaler::cuts`] call was confident
     /// by the cuts as the score scale (and `score_quantile_ceiling`) read them, before
     /// `score_quantile_floor` raised them: the larger of `det_threshold` and
     /// `new_track_threshold` there.
@@ -200,50 +225,40 @@ impl ScoreScaler {
         }
     }
 
-    /// Observes one frame's scores, then returns `params` with its score thresholds
-    /// (`det_threshold`, `new_track_threshold`, `low_threshold`) replaced by the raw cuts they
-    /// stand for in `params.score_scale`.
-    pub fn scaled(&mut self, params: &TrackerParams, scores: &[f64]) -> TrackerParams {
-        let mut p = params.clone();
-        self.observe(scores, p.score_window);
-        for t in [
-            &mut p.det_threshold,
-            &mut p.new_track_threshold,
-            &mut p.low_threshold,
-        ] {
-            *t = self.cut(p.score_scale, *t, p.score_warm_up);
-        }
-        if p.score_quantile_ceiling > 0.0 && self.seen > 0 && p.score_scale == ScoreScale::Absolute
+    /// Observes one frame's scores, then returns the raw cuts that the thresholds `given` stand
+    /// for under `reading` (see the module doc).
+    pub fn cuts(&mut self, reading: &ScoreReading, given: ScoreCuts, scores: &[f64]) -> ScoreCuts {
+        self.observe(scores, reading.window);
+        let read = |t: f64| self.cut(reading.scale, t, reading.warm_up);
+        let mut c = ScoreCuts {
+            det: read(given.det),
+            new_track: read(given.new_track),
+            low: read(given.low),
+        };
+        if reading.quantile_ceiling > 0.0 && self.seen > 0 && reading.scale == ScoreScale::Absolute
         {
-            let q = if self.seen >= p.score_warm_up {
-                self.quantile(p.score_quantile_ceiling)
+            let q = if self.seen >= reading.warm_up {
+                self.quantile(reading.quantile_ceiling)
             } else {
                 self.hi
             };
-            let starved = q < p.det_threshold;
-            let new_starved = q < p.new_track_threshold;
-            for (cut, t, gated) in [
-                (&mut p.det_threshold, params.det_threshold, starved),
-                (
-                    &mut p.new_track_threshold,
-                    params.new_track_threshold,
-                    new_starved,
-                ),
-            ] {
-                if gated {
-                    *cut = cut.min(q).min(self.ratio_cut(t));
-                }
+            let starved = q < c.det;
+            if starved {
+                c.det = c.det.min(q).min(self.ratio_cut(given.det));
+            }
+            if q < c.new_track {
+                c.new_track = c.new_track.min(q).min(self.ratio_cut(given.new_track));
             }
             if starved {
-                p.low_threshold = p.low_threshold.min(self.ratio_cut(params.low_threshold));
+                c.low = c.low.min(self.ratio_cut(given.low));
             }
         }
-        self.confident_cut = p.det_threshold.max(p.new_track_threshold);
-        if p.score_quantile_floor > 0.0 && self.seen >= p.score_warm_up {
-            let q = self.quantile(p.score_quantile_floor);
-            p.det_threshold = p.det_threshold.max(q);
-            p.new_track_threshold = p.new_track_threshold.max(q);
+        self.confident_cut = c.det.max(c.new_track);
+        if reading.quantile_floor > 0.0 && self.seen >= reading.warm_up {
+            let q = self.quantile(reading.quantile_floor);
+            c.det = c.det.max(q);
+            c.new_track = c.new_track.max(q);
         }
-        p
+        c
     }
 }

@@ -93,7 +93,7 @@ fn quantile_floor_raises_det_and_new_cuts_to_the_window_quantile() {
         let mut all: Vec<f64> = Vec::new();
         for _ in 0..25 {
             let scores: Vec<f64> = (0..5).map(|_| 0.5 + 0.5 * rng.next()).collect();
-            let got = s.scaled(&p, &scores);
+            let got = s.cuts(&p.score_reading(), p.score_thresholds(), &scores);
             reference.observe(&scores, window);
             all.extend(&scores);
             let last = &all[all.len().saturating_sub(window)..];
@@ -103,12 +103,12 @@ fn quantile_floor_raises_det_and_new_cuts_to_the_window_quantile() {
                 f64::NEG_INFINITY
             };
             let scale = |t| reference.cut(p.score_scale, t, warm_up);
-            assert_eq!(got.det_threshold, scale(p.det_threshold).max(floor));
+            assert_eq!(got.det, scale(p.det_threshold).max(floor));
             assert_eq!(
-                got.new_track_threshold,
+                got.new_track,
                 scale(p.new_track_threshold).max(floor)
             );
-            assert_eq!(got.low_threshold, scale(p.low_threshold));
+            assert_eq!(got.low, scale(p.low_threshold));
         }
     }
 }
@@ -255,13 +255,13 @@ fn pure_tracker_reads_scores_as_given_and_the_range_scale_reads_the_range() {
     };
     let mut s = ScoreScaler::new();
     s.observe(&[2.0, 4.0], p.score_window);
-    let q = s.scaled(&p, &[]);
+    let q = s.cuts(&p.score_reading(), p.score_thresholds(), &[]);
     // Before warm-up the floor is at most 0: 0.3 of [0, 4].
-    assert!((q.det_threshold - 0.3 * 4.0).abs() < 1e-12);
-    assert!((q.low_threshold - p.low_threshold * 4.0).abs() < 1e-12);
+    assert!((q.det - 0.3 * 4.0).abs() < 1e-12);
+    assert!((q.low - p.low_threshold * 4.0).abs() < 1e-12);
     let pure = TrackerParams::pure();
-    let q = s.scaled(&pure, &[]);
-    assert_eq!(q.det_threshold, f64::NEG_INFINITY);
+    let q = s.cuts(&pure.score_reading(), pure.score_thresholds(), &[]);
+    assert_eq!(q.det, f64::NEG_INFINITY);
 }
 
 #[test]
@@ -289,10 +289,10 @@ fn quantile_ceiling_lowers_starved_cuts_to_the_window_quantile_and_ratio_reading
         for _ in 0..30 {
             let n = (rng.next() * 6.0) as usize;
             let scores: Vec<f64> = (0..n).map(|_| lo + width * rng.next()).collect();
-            let got = s.scaled(&p, &scores);
+            let got = s.cuts(&p.score_reading(), p.score_thresholds(), &scores);
             all.extend(&scores);
             if all.is_empty() {
-                assert_eq!(got, p);
+                assert_eq!(got, p.score_thresholds());
                 continue;
             }
             let last = &all[all.len().saturating_sub(window)..];
@@ -316,9 +316,9 @@ fn quantile_ceiling_lowers_starved_cuts_to_the_window_quantile_and_ratio_reading
             let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b.abs().max(1.0);
             let det = guard(p.det_threshold);
             lowered += usize::from(det < p.det_threshold);
-            assert!(close(got.det_threshold, det.max(floor)));
+            assert!(close(got.det, det.max(floor)));
             assert!(close(
-                got.new_track_threshold,
+                got.new_track,
                 guard(p.new_track_threshold).max(floor)
             ));
             let low = if ceiling < p.det_threshold {
@@ -326,7 +326,7 @@ fn quantile_ceiling_lowers_starved_cuts_to_the_window_quantile_and_ratio_reading
             } else {
                 p.low_threshold
             };
-            assert!(close(got.low_threshold, low));
+            assert!(close(got.low, low));
         }
         // Squeezed scores lower the cuts; scores above them never do.
         if width <= 0.3 {

@@ -453,12 +453,7 @@ fn a_track_with_nothing_in_front_is_not_kept_as_occluded() {
 /// A person walks right at 8 px/frame until their box touches the right edge of a 640 px wide
 /// image, then is no longer detected; returns the live tracks after each of 4 empty frames.
 fn walk_out(occluded_output: u32, image_size: bool) -> Vec<usize> {
-    // Left below half inside (the default's share is tested in tests/left_image.rs).
-    let mut t = Tracker::new(TrackerParams {
-        left_image_inside: 0.5,
-        ..occlusion_params(occluded_output)
-    })
-    .unwrap();
+    let mut t = Tracker::new(occlusion_params(occluded_output)).unwrap();
     if image_size {
         t.set_image_size(640.0, 480.0).unwrap();
     }
@@ -475,8 +470,8 @@ fn walk_out(occluded_output: u32, image_size: bool) -> Vec<usize> {
 
 #[test]
 fn a_track_that_leaves_the_image_is_deleted() {
-    // Predicted boxes: x 608..648 (80% inside), 616..656 (60%), 624..664 (40%: left).
-    assert_eq!(walk_out(30, true), vec![1, 1, 0, 0]);
+    // Predicted box: x 608..648, 80% inside (below 90%: left).
+    assert_eq!(walk_out(30, true), vec![0, 0, 0, 0]);
     // Without an image size nothing is judged to have left.
     assert_eq!(walk_out(30, false), vec![1, 1, 1, 1]);
     // Without scene reasoning the track lives on until max_age.
