@@ -64,9 +64,6 @@ CANDIDATES: dict[str, dict[str, Any]] = {
     "appearance_apart off": {"appearance_apart": 2.0},
     "appearance_apart 0.15": {"appearance_apart": 0.15},
     "appearance_apart 0.22": {"appearance_apart": 0.22},
-    "motion_person_height 80": {"motion_person_height": 80.0},
-    "motion_person_height 100": {"motion_person_height": 100.0},
-    "motion_person_height 0 (pixels)": {"motion_person_height": 0.0},
     "score_quantile_ceiling 0": {"score_quantile_ceiling": 0.0},
     "score_quantile_ceiling 0.5": {"score_quantile_ceiling": 0.5},
     "score_quantile_ceiling 0.9": {"score_quantile_ceiling": 0.9},
@@ -96,13 +93,13 @@ CANDIDATES: dict[str, dict[str, Any]] = {
 TUNED_ON = {
     "det": "the six `/det` cells together, motion only (the score reading, `score_scale` and "
     "`score_quantile_floor`, `max_age`, `output_lost_adaptive`, `position_smoothing`, "
-    "`jitter_floor`, `coast_aspect` and `motion_person_height` on all 15 cells by leave-one-out, "
+    "`jitter_floor` and `coast_aspect` on all 15 cells by leave-one-out, "
     "the `/frcnn` and `/int8` ones included; `score_quantile_ceiling` by the same leave-one-out "
     "and by the 11 motion-only cells under the score maps of `score-maps.md`; "
     "`thresholded_low_iou`, `tentative_max_age` and `coast_min_hits` by the "
     "same leave-one-out)",
     "cnn": "the two `/float` videos together (the score reading as above; "
-    "`appearance_apart` and `motion_person_height` on all 15 cells by leave-one-out; "
+    "`appearance_apart` on all 15 cells by leave-one-out; "
     "`coast_aspect_state` on the two `/float` videos, checked by leave-one-out; "
     "`coast_aspect_quantile` on the two `/float` videos, checked by leave-one-out; "
     "`tentative_max_age` 0 on the two `/float` videos; `amodal_width_quantile` on the "
@@ -112,7 +109,7 @@ TUNED_ON = {
 UNTUNED = (
     "every `/frcnn` and `/int8` cell for all but the score reading, `score_quantile_ceiling`, "
     "`max_age`, `output_lost_adaptive`, `position_smoothing`, `jitter_floor`, `coast_aspect`, "
-    "`appearance_apart`, `motion_person_height`, `thresholded_low_iou`, `tentative_max_age`, "
+    "`appearance_apart`, `thresholded_low_iou`, `tentative_max_age`, "
     "`coast_min_hits`; the `/int8` cells for all but `reid_newborn`"
 )
 MOTION_ROWS = ("frvo", "rvo", "sf", "cv")

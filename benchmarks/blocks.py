@@ -89,10 +89,6 @@ BLOCKS: dict[str, Block] = {
         "the reported centre leans on the prediction (`position_smoothing`)",
         {"position_smoothing": 0.0},
     ),
-    "motion scale": Block(
-        "the motion model's lengths are read on a person `motion_person_height` pixels tall",
-        {"motion_person_height": 0.0},
-    ),
     "lost-box aspect": Block(
         "a lost track keeps the width of a person seen whole (`coast_aspect`, "
         "`coast_aspect_quantile`, `coast_aspect_state`)",

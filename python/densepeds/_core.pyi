@@ -99,7 +99,6 @@ class TrackerKwargs(TypedDict, total=False):
     coast_aspect: bool
     coast_aspect_state: bool
     amodal_boxes: bool
-    motion_person_height: float
     tentative_max_age: int
     coast_aspect_quantile: float
     amodal_width_quantile: float
@@ -159,7 +158,6 @@ class Tracker:
         coast_aspect: bool = True,
         coast_aspect_state: bool = False,
         amodal_boxes: bool = False,
-        motion_person_height: float = 160.0,
         tentative_max_age: int = 2,
         coast_aspect_quantile: float = 0.0,
         amodal_width_quantile: float = 0.0,

@@ -280,23 +280,6 @@ amodal_boxes            bool   False       True|False           a reported box w
                                                                 MOTChallenge annotates)
 ======================  =====  ==========  ===================  ====================================
 
-Block: motion scale:
-
-======================  =====  ==========  ===================  ====================================
-name                    type   default     range                meaning
-======================  =====  ==========  ===================  ====================================
-motion_person_height    float  160.0       [0, inf)             the motion model's lengths
-                                                                (neighbor_radius, max_speed,
-                                                                sf_range, sf_strength) are pixels on
-                                                                a person this tall: each frame the
-                                                                crowd is scaled so that the median
-                                                                track box height (on the ground
-                                                                plane: the fitted height at the
-                                                                reference row) is this, so one
-                                                                setting means the same on every
-                                                                image scale (0: image pixels)
-======================  =====  ==========  ===================  ====================================
-
 Block: tentative tracks:
 
 ======================  =====  ==========  ===================  ====================================

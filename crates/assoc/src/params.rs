@@ -459,8 +459,6 @@ tracker_params! {
             "with coast_aspect, the unmatched track's own width widens too, and with it the predicted box it is matched by (not only the reported box)";
         amodal_boxes: bool = false, Range::Bool,
             "a reported box whose lower part is hidden behind a nearer reported box is extended down to the height the fitted perspective expects from its top row (the whole person, as MOTChallenge annotates)";
-        motion_person_height: f64 = 160.0, closed_open(0.0, f64::INFINITY),
-            "the motion model's lengths (neighbor_radius, max_speed, sf_range, sf_strength) are pixels on a person this tall: each frame the crowd is scaled so that the median track box height (on the ground plane: the fitted height at the reference row) is this, so one setting means the same on every image scale (0: image pixels)";
         tentative_max_age: u32 = 2, ints(0, U32_MAX),
             "frames a tentative track (not yet confirmed by n_init matches) survives unmatched; while it waits it is predicted on its own (not a neighbour in the motion model's step) and matched last, by a detection of the second pass (scored in [low_threshold, det_threshold)) at low_iou_threshold (a confident detection left over starts its own track; from a detector that thresholds its own output, as thresholded_low_iou reads it, every detection is confident), so a person seen once with confidence and then weakly, a frame or two later, is confirmed (0: a tentative track ends at its first miss)";
         coast_aspect_quantile: f64 = 0.0, UNIT,
@@ -525,7 +523,6 @@ pub const BLOCKS: &[(&str, &[&str])] = &[
     ("tentative tracks", &["tentative_max_age"]),
     ("jitter smoothing", &["jitter_floor", "jitter_smoothing_state"]),
     ("position smoothing", &["position_smoothing"]),
-    ("motion scale", &["motion_person_height"]),
     (
         "lost-box aspect",
         &["coast_aspect", "coast_aspect_state", "coast_aspect_quantile"],
@@ -571,12 +568,12 @@ fn unknown(name: &str) -> TrackError {
 impl TrackerParams {
     /// The DensePeds paper's plain tracker (appearance then FRVO-predicted IoU, each solved
     /// optimally; no score thresholds, no second pass, no recovery, no size, position or
-    /// adaptive smoothing, only matched tracks reported, the motion model in image pixels).
+    /// adaptive smoothing, only matched tracks reported).
     /// Equivalent to the keyword arguments `det_threshold=-inf, new_track_threshold=-inf,
     /// second_pass=False, recovery=False, size_smoothing=0, position_smoothing=0,
     /// jitter_floor=0, thresholded_low_iou=1, output_lost=0, occluded_output=0,
     /// score_scale="absolute", score_quantile_floor=0, score_quantile_ceiling=0,
-    /// motion_person_height=0, coast_aspect=False, coast_aspect_quantile=0,
+    /// coast_aspect=False, coast_aspect_quantile=0,
     /// coast_min_hits=0, tentative_max_age=0, reid_newborn=0`. Other fields keep their defaults.
     pub fn pure() -> Self {
         Self {
@@ -596,7 +593,6 @@ impl TrackerParams {
             coast_aspect: false,
             coast_aspect_quantile: 0.0,
             coast_min_hits: 0,
-            motion_person_height: 0.0,
             tentative_max_age: 0,
             reid_newborn: 0,
             ..Self::default()
