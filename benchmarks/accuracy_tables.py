@@ -51,8 +51,6 @@ CANDIDATES: dict[str, dict[str, Any]] = {
     "occluded_output 0": {"occluded_output": 0},
     "occluded_output 5": {"occluded_output": 5},
     "occluded_output 60": {"occluded_output": 60},
-    "score_scale range": {"score_scale": "range"},
-    "score_scale rank": {"score_scale": "rank"},
     "score_quantile_floor 0": {"score_quantile_floor": 0.0},
     "score_quantile_floor 0.3": {"score_quantile_floor": 0.3},
     "amodal_boxes": {"amodal_boxes": True},
@@ -91,7 +89,7 @@ CANDIDATES: dict[str, dict[str, Any]] = {
 }
 # What the package defaults were chosen on: update this where a default is tuned again.
 TUNED_ON = {
-    "det": "the six `/det` cells together, motion only (the score reading, `score_scale` and "
+    "det": "the six `/det` cells together, motion only (the score reading, "
     "`score_quantile_floor`, `max_age`, `output_lost_adaptive`, `position_smoothing`, "
     "`jitter_floor` and `coast_aspect` on all 15 cells by leave-one-out, "
     "the `/frcnn` and `/int8` ones included; `score_quantile_ceiling` by the same leave-one-out "

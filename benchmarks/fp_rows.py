@@ -163,7 +163,7 @@ def report(cell: grid.Cell, params: dict[str, Any], cache: Path) -> None:
     print(
         f"\n## {cell.name}: {len(rows)} rows, {int(np.sum(~nobody))} on a scored person, "
         f"{int(nobody.sum())} on nobody (det_threshold {p['det_threshold']}, "
-        f"low_threshold {p['low_threshold']}, score_scale {p['score_scale']})"
+        f"low_threshold {p['low_threshold']})"
     )
     print(
         "\n| class | rows | score | weak (< det_threshold) | age | hits | track's rows on nobody |"

@@ -76,7 +76,6 @@ class TrackerKwargs(TypedDict, total=False):
     new_track_threshold: float
     second_pass: bool
     low_threshold: float
-    score_scale: str
     score_window: int
     score_quantile_floor: float
     score_quantile_ceiling: float
@@ -135,7 +134,6 @@ class Tracker:
         new_track_threshold: float = 0.3,
         second_pass: bool = True,
         low_threshold: float = 0.05,
-        score_scale: str = "absolute",
         score_window: int = 2000,
         score_quantile_floor: float = 0.15,
         score_quantile_ceiling: float = 0.7,

@@ -7,7 +7,7 @@
 //! A value outside its range is rejected with [`TrackError::InvalidParameter`]; every value
 //! inside it is used as given (nothing is clamped or replaced further down).
 
-use crate::score_scale::{ScoreCuts, ScoreReading, ScoreScale, SCORE_SCALE_NAMES};
+use crate::score_scale::{ScoreCuts, ScoreReading};
 use crate::TrackError;
 use frvo::{MotionKind, MotionParams};
 
@@ -269,19 +269,6 @@ impl Field for MotionKind {
     }
 }
 
-impl Field for ScoreScale {
-    const KIND: ParamKind = ParamKind::Choice;
-    fn to_value(&self) -> ParamValue {
-        ParamValue::Choice(self.name().into())
-    }
-    fn from_value(v: &ParamValue) -> Option<Self> {
-        match v {
-            ParamValue::Choice(s) => s.parse().ok(),
-            _ => None,
-        }
-    }
-}
-
 /// The name a motion model is chosen by (one of [`MOTION_NAMES`]).
 pub fn motion_name(kind: MotionKind) -> &'static str {
     match kind {
@@ -413,16 +400,14 @@ tracker_params! {
             "ByteTrack-style pass: unmatched tracks vs detections in [low_threshold, det_threshold)";
         low_threshold: f64 = 0.05, ANY,
             "lowest score used by the second pass";
-        score_scale: ScoreScale = ScoreScale::Absolute, Range::Choice(SCORE_SCALE_NAMES),
-            "how the score thresholds are read: absolute (as given), range (a place between the lowest score seen and the highest, at least 1), rank (a quantile of the last score_window scores)";
         score_window: usize = 2000, ints(1, USIZE_MAX),
-            "scores (the last ones seen) whose quantiles the rank score scale reads thresholds as";
+            "scores (the last ones seen) whose quantiles score_quantile_floor and score_quantile_ceiling read";
         score_quantile_floor: f64 = 0.15, UNIT,
             "det_threshold and new_track_threshold are at least this quantile of the last score_window scores, after warm-up (0: off)";
         score_quantile_ceiling: f64 = 0.7, UNIT,
-            "where a cut rejects more than this fraction of the last score_window scores (before warm-up: every score seen), det_threshold and new_track_threshold are lowered to at most this quantile and to their place between 0 (or the lowest score, if lower) and the highest score seen, low_threshold to its place there too, so that a detector scoring below the cuts is still tracked (absolute score_scale only; 0: off)";
+            "where a cut rejects more than this fraction of the last score_window scores (before warm-up: every score seen), det_threshold and new_track_threshold are lowered to at most this quantile and to their place between 0 (or the lowest score, if lower) and the highest score seen, low_threshold to its place there too, so that a detector scoring below the cuts is still tracked (0: off)";
         score_warm_up: usize = 100, ints(0, USIZE_MAX),
-            "scores to see before the lowest one is taken for the detector's floor (range) or quantiles are used (rank; range before)";
+            "scores to see before the quantiles of score_quantile_floor and score_quantile_ceiling are used";
         low_iou_threshold: f64 = 0.5, UNIT,
             "smallest IoU for a second-pass match";
         thresholded_low_iou: f64 = 0.3, UNIT,
@@ -503,7 +488,12 @@ pub fn spec(name: &str) -> Option<&'static ParamSpec> {
 pub const BLOCKS: &[(&str, &[&str])] = &[
     (
         "second pass",
-        &["second_pass", "low_threshold", "low_iou_threshold", "low_max_age"],
+        &[
+            "second_pass",
+            "low_threshold",
+            "low_iou_threshold",
+            "low_max_age",
+        ],
     ),
     (
         "score calibration",
@@ -511,7 +501,6 @@ pub const BLOCKS: &[(&str, &[&str])] = &[
             "score_quantile_floor",
             "score_quantile_ceiling",
             "thresholded_low_iou",
-            "score_scale",
             "score_window",
             "score_warm_up",
         ],
@@ -521,11 +510,18 @@ pub const BLOCKS: &[(&str, &[&str])] = &[
     ("adaptive lost reports", &["output_lost_adaptive"]),
     ("young lost tracks hidden", &["coast_min_hits"]),
     ("tentative tracks", &["tentative_max_age"]),
-    ("jitter smoothing", &["jitter_floor", "jitter_smoothing_state"]),
+    (
+        "jitter smoothing",
+        &["jitter_floor", "jitter_smoothing_state"],
+    ),
     ("position smoothing", &["position_smoothing"]),
     (
         "lost-box aspect",
-        &["coast_aspect", "coast_aspect_state", "coast_aspect_quantile"],
+        &[
+            "coast_aspect",
+            "coast_aspect_state",
+            "coast_aspect_quantile",
+        ],
     ),
     ("amodal boxes", &["amodal_boxes"]),
     ("amodal widths", &["amodal_width_quantile"]),
@@ -572,12 +568,11 @@ impl TrackerParams {
     /// Equivalent to the keyword arguments `det_threshold=-inf, new_track_threshold=-inf,
     /// second_pass=False, recovery=False, size_smoothing=0, position_smoothing=0,
     /// jitter_floor=0, thresholded_low_iou=1, output_lost=0, occluded_output=0,
-    /// score_scale="absolute", score_quantile_floor=0, score_quantile_ceiling=0,
+    /// score_quantile_floor=0, score_quantile_ceiling=0,
     /// coast_aspect=False, coast_aspect_quantile=0,
     /// coast_min_hits=0, tentative_max_age=0, reid_newborn=0`. Other fields keep their defaults.
     pub fn pure() -> Self {
         Self {
-            score_scale: ScoreScale::Absolute,
             score_quantile_floor: 0.0,
             score_quantile_ceiling: 0.0,
             det_threshold: f64::NEG_INFINITY,
@@ -602,7 +597,6 @@ impl TrackerParams {
     /// How the score thresholds are read (the `score_*` parameters).
     pub fn score_reading(&self) -> ScoreReading {
         ScoreReading {
-            scale: self.score_scale,
             window: self.score_window,
             warm_up: self.score_warm_up,
             quantile_floor: self.score_quantile_floor,

@@ -1,19 +1,12 @@
-//! The scale the score thresholds are read in, learned online from the scores the tracker sees,
-//! so that one set of thresholds serves detectors whose scores differ in range and shape (an
-//! unbounded detector score, a file already cut at 0.5, a quantised network's shifted scores).
+//! The score cuts of one frame, read from the scores the tracker has seen, so that one set of
+//! thresholds serves detectors whose scores differ in range and shape (an unbounded detector
+//! score mapped into `[0, 1]`, a file already cut at 0.5, a quantised network's shifted scores).
+//! The thresholds are compared with the scores as given, with two guards (the score calibration
+//! block):
 //!
-//! [`ScoreScale::Absolute`] compares scores with the thresholds as given. [`ScoreScale::Range`]
-//! reads a threshold `t` as a place in the range of the scores seen so far: the raw cut is
-//! `lo + t * (hi - lo)`, `lo` the lowest score seen (the detector's floor) and `hi` the highest,
-//! at least 1 (until `warm_up` scores have been seen, `lo` is at most 0, so that a detector in
-//! `[0, 1]` starts with its scores as given). [`ScoreScale::Rank`] reads `t` as a fraction of the
-//! last `window` scores: the raw cut is their `t`-quantile (the smallest of them with at least a
-//! fraction `t` of them at or below it; `t <= 0` keeps every score, `t > 1` none); until
-//! `warm_up` scores have been seen it reads `t` as `Range` does.
-//!
-//! Whatever the scale, `score_quantile_floor` (a fraction `q`, 0: off) keeps the lowest scores of
-//! the window out of the matching stages and births: after warm-up, `det_threshold` and
-//! `new_track_threshold` are raised to at least the `q`-quantile of the last `window` scores.
+//! `score_quantile_floor` (a fraction `q`, 0: off) keeps the lowest scores of the window out of
+//! the matching stages and births: after warm-up, `det_threshold` and `new_track_threshold` are
+//! raised to at least the `q`-quantile of the last `window` scores.
 //!
 //! `score_quantile_ceiling` (a fraction `c`, 0: off) keeps a detector whose scores sit below the
 //! cuts from being ignored: where the `c`-quantile of the last `window` scores (before warm-up:
@@ -23,59 +16,19 @@
 //! `new_track_threshold` likewise, compared with the same quantile. The ratio reading undoes a
 //! detector whose scores are today's multiplied by a constant; the quantile bounds any other
 //! monotone squeeze. A detector whose cuts reject fewer than a fraction `c` of its scores is
-//! read as before. The ceiling guards the absolute scale only: the range and rank scales follow
-//! the scores already. The quantile floor applies after the ceiling.
+//! read as before. The quantile floor applies after the ceiling.
 //!
-//! The tracker converts its thresholds once per frame, after observing that frame's scores, and
-//! compares the raw scores with the converted cuts (a score passes a cut when `score >= cut`).
+//! The tracker reads its cuts once per frame, after observing that frame's scores, and compares
+//! the raw scores with them (a score passes a cut when `score >= cut`).
 
 use std::collections::VecDeque;
-use std::str::FromStr;
-
-/// How score thresholds are read (see the module doc).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ScoreScale {
-    Absolute,
-    Range,
-    Rank,
-}
-
-/// The names a score scale is chosen by, in [`ScoreScale`]'s order.
-pub const SCORE_SCALE_NAMES: &[&str] = &["absolute", "range", "rank"];
-
-impl ScoreScale {
-    /// The name this scale is chosen by (one of [`SCORE_SCALE_NAMES`]).
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Absolute => "absolute",
-            Self::Range => "range",
-            Self::Rank => "rank",
-        }
-    }
-}
-
-impl FromStr for ScoreScale {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "absolute" => Ok(Self::Absolute),
-            "range" => Ok(Self::Range),
-            "rank" => Ok(Self::Rank),
-            _ => Err(format!(
-                "unknown score scale {s:?}; known: {}",
-                SCORE_SCALE_NAMES.join(", ")
-            )),
-        }
-    }
-}
 
 /// How the score thresholds are read: the `score_*` parameters of the tracker.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ScoreReading {
-    pub scale: ScoreScale,
     /// Scores (the last ones seen) whose quantiles are read.
     pub window: usize,
-    /// Scores to see before the lowest is the detector's floor or quantiles are used.
+    /// Scores to see before quantiles are used.
     pub warm_up: usize,
     /// `score_quantile_floor` (0: off).
     pub quantile_floor: f64,
@@ -137,7 +90,7 @@ impl ScoreScaler {
     }
 
     /// Records one frame's scores (NaN is not expected: the tracker rejects it first); only the
-    /// last `window` are kept for [`ScoreScale::Rank`].
+    /// last `window` are kept for the quantiles.
     pub fn observe(&mut self, scores: &[f64], window: usize) {
         for &s in scores {
             self.seen += 1;
@@ -154,32 +107,8 @@ impl ScoreScaler {
         }
     }
 
-    /// The raw score that threshold `t` stands for in `scale` (`t` itself before any score).
-    pub fn cut(&self, scale: ScoreScale, t: f64, warm_up: usize) -> f64 {
-        if self.seen == 0 || t.is_infinite() {
-            return t;
-        }
-        match scale {
-            ScoreScale::Absolute => t,
-            ScoreScale::Rank if self.seen >= warm_up && !self.sorted.is_empty() => self.quantile(t),
-            ScoreScale::Range | ScoreScale::Rank => {
-                let lo = if self.seen < warm_up {
-                    self.lo.min(0.0)
-                } else {
-                    self.lo
-                };
-                let hi = self.hi.max(1.0);
-                if hi > lo && (hi - lo).is_finite() {
-                    lo + t * (hi - lo)
-                } else {
-                    t
-                }
-            }
-        }
-    }
-
     /// The score from which a detection of the last [`ScoreScaler::cuts`] call was confident
-    /// by the cuts as the score scale (and `score_quantile_ceiling`) read them, before
+    /// by the cuts as `score_quantile_ceiling` reads them, before
     /// `score_quantile_floor` raised them: the larger of `det_threshold` and
     /// `new_track_threshold` there.
     pub fn confident_cut(&self) -> f64 {
@@ -229,14 +158,8 @@ impl ScoreScaler {
     /// for under `reading` (see the module doc).
     pub fn cuts(&mut self, reading: &ScoreReading, given: ScoreCuts, scores: &[f64]) -> ScoreCuts {
         self.observe(scores, reading.window);
-        let read = |t: f64| self.cut(reading.scale, t, reading.warm_up);
-        let mut c = ScoreCuts {
-            det: read(given.det),
-            new_track: read(given.new_track),
-            low: read(given.low),
-        };
-        if reading.quantile_ceiling > 0.0 && self.seen > 0 && reading.scale == ScoreScale::Absolute
-        {
+        let mut c = given;
+        if reading.quantile_ceiling > 0.0 && self.seen > 0 {
             let q = if self.seen >= reading.warm_up {
                 self.quantile(reading.quantile_ceiling)
             } else {

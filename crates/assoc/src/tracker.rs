@@ -24,7 +24,9 @@ use crate::crowd_aspect::CrowdAspect;
 use crate::jitter::JitterEstimate;
 use crate::lap::{Edge, SparseMatcher};
 use crate::lost_report::{LostReport, REPORT_PRECISION};
-use crate::occlusion::{classify, complete, Scene, Unmatched, LEFT_IMAGE_INSIDE, OCCLUSION_COVERAGE};
+use crate::occlusion::{
+    classify, complete, Scene, Unmatched, LEFT_IMAGE_INSIDE, OCCLUSION_COVERAGE,
+};
 use crate::params::TrackerParams;
 use crate::perspective::Perspective;
 use crate::predict::predict;
@@ -66,7 +68,7 @@ pub struct Tracker {
     edges: Vec<Edge>,
     /// Image size `[width, height]` when the caller gave it.
     image_size: Option<[f64; 2]>,
-    /// The scores seen, which place the score thresholds (`score_scale`).
+    /// The scores seen, from which each frame's score cuts are read.
     scores_seen: ScoreScaler,
     /// How lost tracks' gaps ended, for `output_lost_adaptive`: gaps that began in the open
     /// (`[0]`) and gaps that began occluded (`[1]`), counted apart.

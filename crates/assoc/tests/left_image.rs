@@ -59,7 +59,14 @@ fn a_track_leaving_the_image_is_deleted_from_the_share_inside() {
     // then 604..644 (90% inside: kept), 612..652 (70%: left).
     assert_eq!(
         walk(564.0, 6),
-        vec![(true, true), (true, true), (true, true), (true, true), (true, true), (false, false)]
+        vec![
+            (true, true),
+            (true, true),
+            (true, true),
+            (true, true),
+            (true, true),
+            (false, false)
+        ]
     );
     assert_eq!(walk(400.0, 3), vec![(true, true); 3]);
 }
