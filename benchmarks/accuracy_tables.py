@@ -52,20 +52,12 @@ CANDIDATES: dict[str, dict[str, Any]] = {
     "output_lost 0": {"output_lost": 0},
     "output_lost 10": {"output_lost": 10},
     "output_lost_adaptive": {"output_lost_adaptive": True},
-    "output_lost_adaptive 0.5": {"output_lost_adaptive": True, "output_lost_precision": 0.5},
     "occluded_output 0": {"occluded_output": 0},
     "occluded_output 5": {"occluded_output": 5},
     "occluded_output 60": {"occluded_output": 60},
-    "occlusion_coverage 0.3": {"occlusion_coverage": 0.3},
-    "occlusion_coverage 0.7": {"occlusion_coverage": 0.7},
-    "score_scale range": {"score_scale": "range"},
-    "score_scale rank": {"score_scale": "rank"},
     "score_quantile_floor 0": {"score_quantile_floor": 0.0},
     "score_quantile_floor 0.3": {"score_quantile_floor": 0.3},
-    "coast_damping 0.95": {"coast_damping": 0.95},
     "amodal_boxes": {"amodal_boxes": True},
-    "ground_plane": {"ground_plane": True},
-    "amodal_boxes + ground_plane": {"amodal_boxes": True, "ground_plane": True},
     "position_smoothing 0": {"position_smoothing": 0.0},
     "position_smoothing 0.5": {"position_smoothing": 0.5},
     "jitter_floor 0": {"jitter_floor": 0.0},
@@ -74,13 +66,6 @@ CANDIDATES: dict[str, dict[str, Any]] = {
     "appearance_apart off": {"appearance_apart": 2.0},
     "appearance_apart 0.15": {"appearance_apart": 0.15},
     "appearance_apart 0.22": {"appearance_apart": 0.22},
-    "motion_person_height 80": {"motion_person_height": 80.0},
-    "motion_person_height 100": {"motion_person_height": 100.0},
-    "motion_person_height 0 (pixels)": {"motion_person_height": 0.0},
-    "ground_plane + motion_person_height 100": {
-        "ground_plane": True,
-        "motion_person_height": 100.0,
-    },
     "score_quantile_ceiling 0": {"score_quantile_ceiling": 0.0},
     "score_quantile_ceiling 0.5": {"score_quantile_ceiling": 0.5},
     "score_quantile_ceiling 0.9": {"score_quantile_ceiling": 0.9},
@@ -101,44 +86,33 @@ CANDIDATES: dict[str, dict[str, Any]] = {
     "reid_newborn off": {"reid_newborn": 0},
     "reid_newborn 3": {"reid_newborn": 3},
     "reid_newborn 5": {"reid_newborn": 5},
-    "reid_margin 0.05": {"reid_margin": 0.05},
-    "left_image_inside 0.5": {"left_image_inside": 0.5},
-    "left_image_inside 0.7": {"left_image_inside": 0.7},
-    "left_image_inside 0.85": {"left_image_inside": 0.85},
-    "left_image_inside 0.95": {"left_image_inside": 0.95},
-    "reid_margin 0.3": {"reid_margin": 0.3},
     "amodal_width_quantile off": {"amodal_width_quantile": 0.0},
     "amodal_width_quantile 0.6": {"amodal_width_quantile": 0.6},
     "amodal_width_quantile 0.75": {"amodal_width_quantile": 0.75},
     "amodal_width_quantile 0.85": {"amodal_width_quantile": 0.85},
-    "amodal_width_coverage 0.02": {"amodal_width_coverage": 0.02},
-    "amodal_width_coverage 0.1 (covered only)": {"amodal_width_coverage": 0.1},
-    "amodal_width_coverage 0.3": {"amodal_width_coverage": 0.3},
 }
 # What the package defaults were chosen on: update this where a default is tuned again.
 TUNED_ON = {
-    "det": "the six `/det` cells together, motion only (the score reading, `score_scale` and "
+    "det": "the six `/det` cells together, motion only (the score reading, "
     "`score_quantile_floor`, `max_age`, `output_lost_adaptive`, `position_smoothing`, "
-    "`jitter_floor`, `coast_aspect` and `motion_person_height` on all 15 cells by leave-one-out, "
+    "`jitter_floor` and `coast_aspect` on all 15 cells by leave-one-out, "
     "the `/frcnn` and `/int8` ones included; `score_quantile_ceiling` by the same leave-one-out "
     "and by the 11 motion-only cells under monotone score maps (`decisions.md`); "
-    "`thresholded_low_iou`, `tentative_max_age`, `coast_min_hits` and `left_image_inside` by the "
+    "`thresholded_low_iou`, `tentative_max_age` and `coast_min_hits` by the "
     "same leave-one-out)",
     "cnn": "the two `/float` videos together (the score reading as above; "
-    "`appearance_apart` and `motion_person_height` on all 15 cells by leave-one-out; "
+    "`appearance_apart` on all 15 cells by leave-one-out; "
     "`coast_aspect_state` on the two `/float` videos, checked by leave-one-out; "
     "`coast_aspect_quantile` on the two `/float` videos, checked by leave-one-out; "
-    "`tentative_max_age` 0 on the two `/float` videos; `amodal_width_quantile` and "
-    "`amodal_width_coverage` on the four video cells, checked by leave-one-out; `reid_newborn` "
-    "and `reid_margin`, which act only with embeddings, on the four video cells and checked by "
-    "leave-one-out)",
+    "`tentative_max_age` 0 on the two `/float` videos; `amodal_width_quantile` on the "
+    "four video cells, checked by leave-one-out; `reid_newborn`, which acts only with "
+    "embeddings, on the four video cells and checked by leave-one-out)",
 }
 UNTUNED = (
     "every `/frcnn` and `/int8` cell for all but the score reading, `score_quantile_ceiling`, "
     "`max_age`, `output_lost_adaptive`, `position_smoothing`, `jitter_floor`, `coast_aspect`, "
-    "`appearance_apart`, `motion_person_height`, `thresholded_low_iou`, `tentative_max_age`, "
-    "`coast_min_hits` and `left_image_inside`; the `/int8` cells for all but `reid_newborn` and "
-    "`reid_margin`"
+    "`appearance_apart`, `thresholded_low_iou`, `tentative_max_age`, "
+    "`coast_min_hits`; the `/int8` cells for all but `reid_newborn`"
 )
 MOTION_ROWS = ("frvo", "rvo", "sf", "cv")
 FEATURE_ROWS = ("segmented", "bbox", "masked_pool", "none")
@@ -659,10 +633,8 @@ def _band_tables(title: str, sides: Mapping[str, Side], what: str) -> list[str]:
 def claims_table(
     motions: Mapping[str, Side],
     features: Mapping[str, Side],
-    ground: Mapping[str, Results] | None = None,
 ) -> list[str]:
-    """``motions`` / ``features``: each side, the method's first (FRVO, segmented); ``ground``:
-    FRVO and CV with ``ground_plane`` on (motion on the ground plane), if run."""
+    """``motions`` / ``features``: each side, the method's first (FRVO, segmented)."""
     rng = np.random.default_rng(0)
     motion_what = (
         "Bands: "
@@ -692,16 +664,6 @@ def claims_table(
         "|---|---|---:|---|---:|---:|---|---|",
         *_claim_rows("frvo", motions, rng),
     ]
-    if ground:
-        lines.append(
-            _claim_line(
-                "frvo vs cv, both on the ground plane (`ground_plane`)",
-                "package defaults",
-                ground["frvo"],
-                ground["cv"],
-                rng,
-            )
-        )
     lines += [
         "",
         "## Appearance features (video cells, FRVO)",
@@ -714,8 +676,6 @@ def claims_table(
         ("motion model, package defaults", {k: s.defaults for k, s in motions.items()}),
         ("features, package defaults", {k: s.defaults for k, s in features.items()}),
     ]
-    if ground:
-        groups.insert(1, ("motion model on the ground plane, package defaults", ground))
     for title, group in groups:
         cells = list(next(iter(group.values())))
         lines += [
@@ -907,10 +867,6 @@ def write_all(
             }
             base = default if m == "frvo" else _run(data, replace(ours, motion=m))
             motions[m] = Side(base, band)
-        ground: dict[str, Results] = {}
-        if _known({"ground_plane": True}):
-            for m in ("frvo", "cv"):
-                ground[m] = _run(data, replace(ours, motion=m, params={"ground_plane": True}))
         videos = [d for d in data if d.cell.full_pipeline]
         features = {}
         for f in FEATURE_ROWS:
@@ -934,7 +890,7 @@ def write_all(
                 "mask-weighted pooling (`masked_pool`) and no appearance (`none`); every other "
                 "setting at the package defaults.",
             )
-            + claims_table(motions, features, ground),
+            + claims_table(motions, features),
         )
 
     if "scene" in tables:

@@ -118,7 +118,11 @@ def _stub_value(v: object) -> str:
 
 
 def docs_table(params: Sequence[Mapping[str, Any]]) -> list[str]:
-    """The reStructuredText table of every parameter: name, type, default, range, meaning."""
+    """The reStructuredText tables of every parameter (name, type, default, range, meaning): the
+    core parameters first, then one table per block (``group``), its switch first."""
+    groups: dict[str, list[Mapping[str, Any]]] = {"core": []}
+    for p in params:
+        groups.setdefault(str(p.get("group", "core")), []).append(p)
     rows = [(p["name"], p["type"], _value(p["default"]), p["range"], p["doc"]) for p in params]
     head = ("name", "type", "default", "range", "meaning")
     widths = [max(len(r[i]) for r in [*rows, head]) for i in range(4)]
@@ -133,10 +137,14 @@ def docs_table(params: Sequence[Mapping[str, Any]]) -> list[str]:
         out += [pad + more for more in wrapped[1:]]
         return out
 
-    body = [rule, *line(head), rule]
-    for r in rows:
-        body += line(r)
-    return [*body, rule]
+    out: list[str] = []
+    for group, members in groups.items():
+        title = "Core parameters" if group == "core" else f"Block: {group}"
+        out += [*([""] if out else []), f"{title}:", "", rule, *line(head), rule]
+        for p in members:
+            out += line((p["name"], p["type"], _value(p["default"]), p["range"], p["doc"]))
+        out.append(rule)
+    return out
 
 
 def stub_init(params: Sequence[Mapping[str, Any]]) -> list[str]:

@@ -47,25 +47,29 @@ def stub_init_defaults() -> dict[str, tuple[str, Any]]:
 
 
 def docs_rows() -> dict[str, list[str]]:
-    """The tracking.py docstring table: name -> [type, default, range, meaning]."""
+    """The tracking.py docstring tables (the core parameters, then one per block, each under its
+    title line): name -> [type, default, range, meaning, group]."""
     import densepeds.tracking
 
     doc = densepeds.tracking.__doc__ or ""
     lines = doc.split("\n")
     rules = [i for i, line in enumerate(lines) if line.startswith("=====")]
-    assert len(rules) == 3, "one table with a header"
+    assert rules and len(rules) % 3 == 0, "tables with a header"
     rows: dict[str, list[str]] = {}
-    widths = [len(c) for c in lines[rules[0]].split("  ")]
-    for line in lines[rules[1] + 1 : rules[2]]:
-        cells, start = [], 0
-        for w in widths:
-            cells.append(line[start : start + w].strip())
-            start += w + 2
-        if cells[0]:
-            rows[cells[0]] = cells[1:]
-        else:  # a wrapped meaning
-            last = rows[next(reversed(rows))]
-            last[3] = f"{last[3]} {cells[4]}"
+    for t in range(0, len(rules), 3):
+        title = lines[rules[t] - 2].rstrip(":")
+        group = "core" if title == "Core parameters" else title.removeprefix("Block: ")
+        widths = [len(c) for c in lines[rules[t]].split("  ")]
+        for line in lines[rules[t + 1] + 1 : rules[t + 2]]:
+            cells, start = [], 0
+            for w in widths:
+                cells.append(line[start : start + w].strip())
+                start += w + 2
+            if cells[0]:
+                rows[cells[0]] = [*cells[1:], group]
+            else:  # a wrapped meaning
+                last = rows[next(reversed(rows))]
+                last[3] = f"{last[3]} {cells[4]}"
     return rows
 
 
@@ -75,13 +79,15 @@ def test_every_name_type_default_and_doc_agree() -> None:
     assert Tracker().params == {name: row["default"] for name, row in table.items()}
     stub = stub_init_defaults()
     docs = docs_rows()
-    assert list(stub) == list(table) and list(docs) == list(table)
+    assert list(stub) == list(table) and sorted(docs) == sorted(table)
     for name, row in table.items():
         assert stub[name] == (row["type"], row["default"]), name
         assert type(row["default"]).__name__ == row["type"], name
-        kind, default, range_, meaning = docs[name]
+        kind, default, range_, meaning, group = docs[name]
         assert kind == row["type"] and range_ == row["range"] and meaning == row["doc"], name
-        assert default == repr(row["default"]), name
+        assert default == repr(row["default"]) and group == row["group"], name
+    # At most 15 core parameters; every other one in a named block.
+    assert sum(row["group"] == "core" for row in table.values()) <= 15
 
 
 @pytest.mark.parametrize(

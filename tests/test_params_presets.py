@@ -22,15 +22,13 @@ def test_every_preset_can_fire_above_its_floor(name: str) -> None:
 
 
 def test_the_check_refuses_thresholds_under_the_floor() -> None:
-    # Absolute cuts of 0.15 / 0.3 under a floor of 0.5 leave the second pass nothing to work on;
-    # in the range score scale the same cuts are places above the floor seen, and fire.
+    # Cuts of 0.15 / 0.3 under a floor of 0.5 leave the second pass nothing to work on; above
+    # it they fire.
     cuts = {"low_threshold": 0.15, "det_threshold": 0.3}
-    bad = dataclasses.replace(
-        PRESETS["yoloseg"], name="bad", score_floor=0.5, tracker={**cuts, "score_scale": "absolute"}
-    )
+    bad = dataclasses.replace(PRESETS["yoloseg"], name="bad", score_floor=0.5, tracker=cuts)
     with pytest.raises(ParameterError, match="second pass"):
         bad.check()
-    dataclasses.replace(bad, tracker={**cuts, "score_scale": "range"}).check()
+    dataclasses.replace(bad, score_floor=0.1).check()
     unborn = dataclasses.replace(PRESETS["detfile"], tracker={"new_track_threshold": 1.5})
     with pytest.raises(ParameterError, match="starts a track"):
         unborn.check()

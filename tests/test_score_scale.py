@@ -1,4 +1,5 @@
-"""The tracker's score scales against numpy: which detections start a track in each scale."""
+"""The tracker's score reading against numpy: which detections start a track under the quantile
+floor and ceiling, and as given."""
 
 from __future__ import annotations
 
@@ -21,50 +22,6 @@ def started(t: Tracker, scores: np.ndarray, row: int) -> set[int]:
     return set(out.det_index.tolist())
 
 
-@pytest.mark.parametrize("threshold", [0.05, 0.3, 0.5, 0.9])
-def test_rank_scale_starts_tracks_from_the_quantile_of_the_last_scores(threshold: float) -> None:
-    rng = np.random.default_rng(5)
-    window = 25
-    t = Tracker(
-        "cv",
-        n_init=1,
-        output_lost=0,
-        score_scale="rank",
-        score_window=window,
-        score_warm_up=0,
-        score_quantile_floor=0.0,
-        det_threshold=threshold,
-        new_track_threshold=threshold,
-    )
-    seen: list[float] = []
-    for row in range(6):
-        scores = np.round(rng.gamma(2.0, 10.0, size=int(rng.integers(3, 12))), 1)
-        seen += scores.tolist()
-        cut = np.quantile(seen[-window:], threshold, method="inverted_cdf")
-        assert started(t, scores, row) == set(np.flatnonzero(scores >= cut).tolist())
-
-
-def test_range_scale_reads_thresholds_from_the_floor_seen() -> None:
-    rng = np.random.default_rng(8)
-    t = Tracker(
-        "cv",
-        n_init=1,
-        output_lost=0,
-        score_warm_up=0,
-        score_quantile_floor=0,
-        new_track_threshold=0.6,
-        score_scale="range",
-    )
-    assert t.params["score_scale"] == "range"
-    seen: list[float] = []
-    for row in range(5):
-        scores = 0.5 + 0.5 * rng.random(9)  # a detector cut at 0.5
-        seen += scores.tolist()
-        lo, hi = min(seen), max(max(seen), 1.0)
-        cut = lo + 0.6 * (hi - lo)
-        assert started(t, scores, row) == set(np.flatnonzero(scores >= cut).tolist())
-
-
 @pytest.mark.parametrize("q", [0.15, 0.6])
 def test_quantile_floor_keeps_the_window_s_lowest_scores_from_starting_tracks(q: float) -> None:
     rng = np.random.default_rng(9)
@@ -73,7 +30,6 @@ def test_quantile_floor_keeps_the_window_s_lowest_scores_from_starting_tracks(q:
         "cv",
         n_init=1,
         output_lost=0,
-        score_scale="absolute",
         score_quantile_floor=q,
         score_window=window,
         score_warm_up=0,
@@ -107,17 +63,16 @@ def test_quantile_ceiling_tracks_a_detector_scoring_below_the_cuts(ceiling: floa
         assert started(off, scores, row) == set()
 
 
-def test_absolute_scale_and_the_pure_tracker_read_scores_as_given() -> None:
+def test_the_pure_tracker_reads_scores_as_given() -> None:
     pure = Tracker(**PURE_PARAMS).params
-    assert pure["score_scale"] == "absolute" and pure["score_quantile_floor"] == 0
-    assert pure["score_quantile_ceiling"] == 0
-    t = Tracker("cv", n_init=1, output_lost=0, score_scale="absolute", new_track_threshold=0.6)
+    assert pure["score_quantile_floor"] == 0 and pure["score_quantile_ceiling"] == 0
+    t = Tracker("cv", n_init=1, output_lost=0, new_track_threshold=0.6)
     scores = np.array([0.55, 0.6, 0.9, 0.59])
     assert started(t, scores, 0) == {1, 2}
 
 
 def test_cnn_presets_cut_above_the_detector_floor() -> None:
-    # Read as given (the default absolute scale), each CNN preset's cuts sit at or above the
+    # Read as given, each CNN preset's cuts sit at or above the
     # floor of its detector, so that each stage sees some scores.
     for name in ("yoloseg", "maskrcnn"):
         preset = PRESETS[name]

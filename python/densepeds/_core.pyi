@@ -54,6 +54,7 @@ class ParamRow(TypedDict):
     default: float | int | bool | str
     range: str  # e.g. "[0, 1]", "(0, inf)", "1..=32", ">= 1", "frvo|rvo|sf|cv"
     doc: str
+    group: str  # "core" or the name of the block the parameter belongs to
 
 #: Every tracker parameter (``motion`` first, then the tracker's own, then the motion model's).
 PARAMS: tuple[ParamRow, ...]
@@ -77,7 +78,6 @@ class TrackerKwargs(TypedDict, total=False):
     new_track_threshold: float
     second_pass: bool
     low_threshold: float
-    score_scale: str
     score_window: int
     score_quantile_floor: float
     score_quantile_ceiling: float
@@ -86,7 +86,6 @@ class TrackerKwargs(TypedDict, total=False):
     thresholded_low_iou: float
     low_max_age: int
     recovery: bool
-    recovery_iou_threshold: float
     velocity_smoothing: float
     pref_window: int
     position_smoothing: float
@@ -97,23 +96,15 @@ class TrackerKwargs(TypedDict, total=False):
     ellipse_w_scale: float
     output_lost: int
     output_lost_adaptive: bool
-    output_lost_precision: float
     occluded_output: int
-    occlusion_coverage: float
-    coast_damping: float
     coast_aspect: bool
     coast_aspect_state: bool
     amodal_boxes: bool
-    ground_plane: bool
-    motion_person_height: float
     tentative_max_age: int
     coast_aspect_quantile: float
     amodal_width_quantile: float
-    amodal_width_coverage: float
     coast_min_hits: int
     reid_newborn: int
-    reid_margin: float
-    left_image_inside: float
     neighbor_radius: float
     max_neighbors: int
     time_horizon: float
@@ -145,7 +136,6 @@ class Tracker:
         new_track_threshold: float = 0.3,
         second_pass: bool = True,
         low_threshold: float = 0.05,
-        score_scale: str = "absolute",
         score_window: int = 2000,
         score_quantile_floor: float = 0.15,
         score_quantile_ceiling: float = 0.7,
@@ -154,7 +144,6 @@ class Tracker:
         thresholded_low_iou: float = 0.3,
         low_max_age: int = 60,
         recovery: bool = True,
-        recovery_iou_threshold: float = 0.3,
         velocity_smoothing: float = 0.5,
         pref_window: int = 20,
         position_smoothing: float = 0.3,
@@ -165,23 +154,15 @@ class Tracker:
         ellipse_w_scale: float = 0.15,
         output_lost: int = 5,
         output_lost_adaptive: bool = True,
-        output_lost_precision: float = 0.33,
         occluded_output: int = 10,
-        occlusion_coverage: float = 0.5,
-        coast_damping: float = 1.0,
         coast_aspect: bool = True,
         coast_aspect_state: bool = False,
         amodal_boxes: bool = False,
-        ground_plane: bool = False,
-        motion_person_height: float = 160.0,
         tentative_max_age: int = 2,
         coast_aspect_quantile: float = 0.0,
         amodal_width_quantile: float = 0.0,
-        amodal_width_coverage: float = 0.1,
         coast_min_hits: int = 6,
         reid_newborn: int = 4,
-        reid_margin: float = 0.15,
-        left_image_inside: float = 0.9,
         neighbor_radius: float = 150.0,
         max_neighbors: int = 10,
         time_horizon: float = 5.0,

@@ -16,10 +16,10 @@ Where a detection's score is cut, in order (every cut is ``score >= value`` unle
 3. the tracker: detections in ``[low_threshold, det_threshold)`` only extend tracks (second
    pass), those from ``det_threshold`` up are matched in every stage, and those from
    ``new_track_threshold`` (and ``det_threshold``) up may start a track.
-   The tracker reads these thresholds in its ``score_scale`` (by default ``absolute``: as
-   given; chosen by leave-one-out over the dev grid, ``benchmarks/results/accuracy-loo.md``),
-   and ``score_quantile_floor`` keeps the lowest-scored recent detections from matching or
-   starting tracks whatever the detector's scale.
+   The tracker compares the scores with these thresholds as given, and its score calibration
+   (``score_quantile_floor``, ``score_quantile_ceiling``) keeps the lowest-scored recent
+   detections from matching or starting tracks and lowers cuts that no score reaches, whatever
+   the detector's scale.
 
 ``Preset.check`` asserts that each tracker stage can fire above the floor.
 """
@@ -51,8 +51,6 @@ class Preset:
 
         p = {name: row["default"] for name, row in PARAMS.items()} | dict(self.tracker)
         floor = -float("inf") if self.score_floor is None else self.score_floor
-        if p["score_scale"] != "absolute":
-            floor = 0.0  # the thresholds are places in the scores seen, from 0 up
         cuts = ("low_threshold", "det_threshold", "new_track_threshold")
         low, det, new = (float(p[k]) for k in cuts)
         if p["second_pass"] and not (max(low, floor) < det):
@@ -109,10 +107,9 @@ _CNN_APPEARANCE: dict[str, float | int | bool] = {
     # A COCO-trained segmenter boxes what shows, narrower than the whole person the ground truth
     # annotates (a side or the arms hidden by the people around, or just a tight box): a matched
     # person is reported at least as wide as the 70% quantile of the matched boxes' aspect
-    # ratios, covered by a nearer person or not (coverage 0). Both on the four video cells,
-    # checked by leave-one-out (benchmarks/results/accuracy-loo.md).
+    # ratios, covered by a nearer person or not. Chosen on the four video cells, checked by
+    # leave-one-out (benchmarks/results/accuracy-loo.md).
     "amodal_width_quantile": 0.7,
-    "amodal_width_coverage": 0.0,
     # A segmenter finds a person it saw with confidence again with confidence: a tentative track
     # ends at its first miss (the weak-detection wait, tentative_max_age, helps sparse det files).
     "tentative_max_age": 0,

@@ -20,5 +20,5 @@ pub mod tracker;
 pub use error::TrackError;
 pub use lap::{linear_sum_assignment, Edge, LapWorkspace, SparseMatcher, DENSE_COMPONENT_MAX};
 pub use params::{ParamKind, ParamSpec, ParamValue, Range, TrackerParams, PARAMS};
-pub use score_scale::{ScoreScale, ScoreScaler};
+pub use score_scale::{ScoreCuts, ScoreReading, ScoreScaler};
 pub use tracker::{Embeddings, TrackOutput, Tracker};

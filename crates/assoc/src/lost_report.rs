@@ -19,7 +19,7 @@
 //! hidden person is more likely still there than one who vanished in the open.
 //!
 //! A lost track is reported at gap `t` while hits make at least a share `min_precision` of the
-//! gaps counted at `t` (`output_lost_precision`). A reported box that is a hit with probability
+//! gaps counted at `t` ([`REPORT_PRECISION`]). A reported box that is a hit with probability
 //! `p` adds `p` true positives for `1 - p` false positives: MOTA gains where `p > 1/2`, HOTA's
 //! detection accuracy `DetA = TP / (TP + FN + FP)` where `p > DetA / (1 + DetA)`, 1/3 at
 //! `DetA = 0.5`. With nothing counted yet every gap is reported, as without the adaptation.
@@ -29,6 +29,10 @@ use crate::cost::{iou, BBox};
 /// Overlap between a lost track's prediction and the detection that re-finds it for its coasted
 /// boxes to count as hits: the MOTChallenge criterion for a reported box to match a person.
 pub const HIT_IOU: f64 = 0.5;
+
+/// The share of gaps re-found at the prediction needed to report a lost track: a box that is a
+/// hit with probability `p` raises HOTA's DetA where `p > DetA / (1 + DetA)`, 1/3 at DetA 0.5.
+pub const REPORT_PRECISION: f64 = 0.33;
 
 /// Counts of how coasted boxes at each gap length turned out.
 #[derive(Clone, Debug, Default)]

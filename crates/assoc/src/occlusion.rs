@@ -20,6 +20,13 @@ pub enum Unmatched {
     Uncovered,
 }
 
+/// Covered fraction of an unmatched track's predicted box (by nearer people) from which it is
+/// occluded, and of a reported box's hidden lower part from which `amodal_boxes` completes it.
+pub const OCCLUSION_COVERAGE: f64 = 0.5;
+
+/// Share of an unmatched track's predicted box inside the image below which it has left.
+pub const LEFT_IMAGE_INSIDE: f64 = 0.9;
+
 /// Sample points per side of the grid that measures coverage (`GRID * GRID` points).
 const GRID: usize = 8;
 

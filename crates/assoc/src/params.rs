@@ -7,6 +7,7 @@
 //! A value outside its range is rejected with [`TrackError::InvalidParameter`]; every value
 //! inside it is used as given (nothing is clamped or replaced further down).
 
+use crate::score_scale::{ScoreCuts, ScoreReading};
 use crate::TrackError;
 use frvo::{MotionKind, MotionParams};
 
@@ -305,19 +306,6 @@ impl Field for MotionKind {
     }
 }
 
-impl Field for ScoreScale {
-    const KIND: ParamKind = ParamKind::Choice;
-    fn to_value(&self) -> ParamValue {
-        ParamValue::Choice(self.name().into())
-    }
-    fn from_value(v: &ParamValue) -> Option<Self> {
-        match v {
-            ParamValue::Choice(s) => s.parse().ok(),
-            _ => None,
-        }
-    }
-}
-
 /// The name a motion model is chosen by (one of [`MOTION_NAMES`]).
 pub fn motion_name(kind: MotionKind) -> &'static str {
     match kind {
@@ -450,16 +438,14 @@ tracker_params! {
             "ByteTrack-style pass: unmatched tracks vs detections in [low_threshold, det_threshold)";
         low_threshold: f64 = 0.05, ANY,
             "lowest score used by the second pass";
-        score_scale: ScoreScale = ScoreScale::Absolute, Range::Choice(SCORE_SCALE_NAMES),
-            "how the score thresholds are read: absolute (as given), range (a place between the lowest score seen and the highest, at least 1), rank (a quantile of the last score_window scores)";
         score_window: usize = 2000, ints(1, USIZE_MAX),
-            "scores (the last ones seen) whose quantiles the rank score scale reads thresholds as";
+            "scores (the last ones seen) whose quantiles score_quantile_floor and score_quantile_ceiling read";
         score_quantile_floor: f64 = 0.15, UNIT,
             "det_threshold and new_track_threshold are at least this quantile of the last score_window scores, after warm-up (0: off)";
         score_quantile_ceiling: f64 = 0.7, UNIT,
-            "where a cut rejects more than this fraction of the last score_window scores (before warm-up: every score seen), det_threshold and new_track_threshold are lowered to at most this quantile and to their place between 0 (or the lowest score, if lower) and the highest score seen, low_threshold to its place there too, so that a detector scoring below the cuts is still tracked (absolute score_scale only; 0: off)";
+            "where a cut rejects more than this fraction of the last score_window scores (before warm-up: every score seen), det_threshold and new_track_threshold are lowered to at most this quantile and to their place between 0 (or the lowest score, if lower) and the highest score seen, low_threshold to its place there too, so that a detector scoring below the cuts is still tracked (0: off)";
         score_warm_up: usize = 100, ints(0, USIZE_MAX),
-            "scores to see before the lowest one is taken for the detector's floor (range) or quantiles are used (rank; range before)";
+            "scores to see before the quantiles of score_quantile_floor and score_quantile_ceiling are used";
         low_iou_threshold: f64 = 0.5, UNIT,
             "smallest IoU for a second-pass match";
         thresholded_low_iou: f64 = 0.3, UNIT,
@@ -468,8 +454,6 @@ tracker_params! {
             "tracks unmatched up to this many frames join the second pass (0: ByteTrack's rule)";
         recovery: bool = true, Range::Bool,
             "OC-SORT-style re-match of unmatched tracks by IoU of their last observed box";
-        recovery_iou_threshold: f64 = 0.3, UNIT,
-            "smallest IoU for a recovery match";
         velocity_smoothing: f64 = 0.5, UNIT,
             "weight of the newly observed velocity in the velocity average (1: no smoothing)";
         pref_window: usize = 20, ints(1, USIZE_MAX),
@@ -490,40 +474,24 @@ tracker_params! {
             "confirmed tracks are also reported, at their prediction, this many frames unmatched";
         output_lost_adaptive: bool = true, Range::Bool,
             "report a lost track at gap t (output_lost, occluded_output) only while, on this sequence so far, lost tracks (occluded and in the open counted apart) were re-found at their predicted box (IoU >= 0.5) at least as often as not";
-        output_lost_precision: f64 = 0.33, UNIT,
-            "with output_lost_adaptive: the share of gaps re-found at the prediction needed to report a lost track (a box that is a hit with probability p raises HOTA's DetA where p > DetA / (1 + DetA), 1/3 at DetA 0.5; 0.5 for MOTA)";
         occluded_output: u32 = 10, ints(0, U32_MAX),
-            "an unmatched track covered by nearer detections is reported up to this many frames; one whose predicted box is less than left_image_inside inside the image (set_image_size) is deleted (0: off)";
-        occlusion_coverage: f64 = 0.5, UNIT,
-            "covered fraction of an unmatched track's predicted box that means occluded";
-        coast_damping: f64 = 1.0, UNIT,
-            "an unmatched track's preferred velocity is multiplied by this for every frame it stays unmatched (1: kept)";
+            "an unmatched track covered by nearer detections is reported up to this many frames; one whose predicted box has less than 90% of its area inside the image (set_image_size) has left it and is deleted (0: off)";
         coast_aspect: bool = true, Range::Bool,
             "an unmatched track's reported box is at least as wide as its matched detections' mean aspect ratio (width over height, over the last 30 matches) makes its height (an occluded person's last boxes are cut narrow)";
         coast_aspect_state: bool = false, Range::Bool,
             "with coast_aspect, the unmatched track's own width widens too, and with it the predicted box it is matched by (not only the reported box)";
         amodal_boxes: bool = false, Range::Bool,
             "a reported box whose lower part is hidden behind a nearer reported box is extended down to the height the fitted perspective expects from its top row (the whole person, as MOTChallenge annotates)";
-        ground_plane: bool = false, Range::Bool,
-            "motion on the ground: the motion model steps feet in ground coordinates from a perspective fitted online (box height vs foot row), boxes scale with depth; image space until a fit holds";
-        motion_person_height: f64 = 160.0, closed_open(0.0, f64::INFINITY),
-            "the motion model's lengths (neighbor_radius, max_speed, sf_range, sf_strength) are pixels on a person this tall: each frame the crowd is scaled so that the median track box height (on the ground plane: the fitted height at the reference row) is this, so one setting means the same on every image scale (0: image pixels)";
         tentative_max_age: u32 = 2, ints(0, U32_MAX),
             "frames a tentative track (not yet confirmed by n_init matches) survives unmatched; while it waits it is predicted on its own (not a neighbour in the motion model's step) and matched last, by a detection of the second pass (scored in [low_threshold, det_threshold)) at low_iou_threshold (a confident detection left over starts its own track; from a detector that thresholds its own output, as thresholded_low_iou reads it, every detection is confident), so a person seen once with confidence and then weakly, a frame or two later, is confirmed (0: a tentative track ends at its first miss)";
         coast_aspect_quantile: f64 = 0.0, UNIT,
             "a lost track's reported box is at least as wide as this quantile of the aspect ratios (width over height) of every track's matched detections (the last 2000) makes its height: the width of a person seen whole in this scene (0: off)";
         amodal_width_quantile: f64 = 0.0, UNIT,
-            "a matched track's reported box covered at least amodal_width_coverage by reported boxes nearer the camera (lower foot point) is at least as wide as this quantile of the aspect ratios of every track's matched detections makes its height: a person seen in part reported at the width of one seen whole, as MOTChallenge annotates them (reporting only; 0: off)";
-        amodal_width_coverage: f64 = 0.1, UNIT,
-            "covered fraction (by reported boxes nearer the camera) of a matched track's reported box that widens it (amodal_width_quantile; 0: every matched box, covered or not)";
+            "a matched track's reported box is at least as wide as this quantile of the aspect ratios of every track's matched detections makes its height: a person seen in part, or boxed tighter than the annotation's whole person, reported at the width of one seen whole (reporting only; 0: off)";
         coast_min_hits: u32 = 6, ints(0, U32_MAX),
             "an unmatched track is reported (output_lost, occluded_output) only once it has been matched at least this many times (a young track lost at once is more often a false detection than a person; 0: off)";
         reid_newborn: u32 = 4, ints(0, U32_MAX),
-            "deferred re-identification: when a track born while confirmed tracks were lost reaches this many matches (at least n_init), the mean of its embeddings so far is compared with those lost tracks' galleries; the nearest, if within min(appearance_threshold, appearance_apart) and nearer than every other by reid_margin, gives the new track its id from that frame on and ends (0: off)";
-        reid_margin: f64 = 0.15, closed(0.0, 2.0),
-            "reid_newborn: how much nearer in cosine distance the chosen lost track must be than every other lost track";
-        left_image_inside: f64 = 0.9, UNIT,
-            "an unmatched confirmed track whose predicted box has less than this share of its area inside the image has left it and is deleted (with the image size given and occluded_output > 0; so never in the pure method)";
+            "deferred re-identification: when a track born while confirmed tracks were lost reaches this many matches (at least n_init), the mean of its embeddings so far is compared with those lost tracks' galleries; the nearest, if within min(appearance_threshold, appearance_apart) and nearer than every other by 0.15, gives the new track its id from that frame on and ends (0: off)";
     }
     motion {
         neighbor_radius: f64, POSITIVE,
@@ -552,6 +520,77 @@ pub fn spec(name: &str) -> Option<&'static ParamSpec> {
     PARAMS.iter().find(|p| p.name == name)
 }
 
+/// The named blocks: each crowd extension (or the motion model's tuning) and its parameters,
+/// the first being its switch. A parameter in no block is a core one. The blocks are measured
+/// on and off in `benchmarks/results/blocks.md`; `docs/tracker.md` describes them.
+pub const BLOCKS: &[(&str, &[&str])] = &[
+    (
+        "second pass",
+        &[
+            "second_pass",
+            "low_threshold",
+            "low_iou_threshold",
+            "low_max_age",
+        ],
+    ),
+    (
+        "score calibration",
+        &[
+            "score_quantile_floor",
+            "score_quantile_ceiling",
+            "thresholded_low_iou",
+            "score_window",
+            "score_warm_up",
+        ],
+    ),
+    ("recovery", &["recovery"]),
+    ("occlusion-aware coasting", &["occluded_output"]),
+    ("adaptive lost reports", &["output_lost_adaptive"]),
+    ("young lost tracks hidden", &["coast_min_hits"]),
+    ("tentative tracks", &["tentative_max_age"]),
+    (
+        "jitter smoothing",
+        &["jitter_floor", "jitter_smoothing_state"],
+    ),
+    ("position smoothing", &["position_smoothing"]),
+    (
+        "lost-box aspect",
+        &[
+            "coast_aspect",
+            "coast_aspect_state",
+            "coast_aspect_quantile",
+        ],
+    ),
+    ("amodal boxes", &["amodal_boxes"]),
+    ("amodal widths", &["amodal_width_quantile"]),
+    ("appearance apart", &["appearance_apart"]),
+    ("newborn re-ID", &["reid_newborn"]),
+    (
+        "motion model",
+        &[
+            "ellipse_l_scale",
+            "ellipse_w_scale",
+            "neighbor_radius",
+            "max_neighbors",
+            "time_horizon",
+            "max_speed",
+            "polygon_sides",
+            "sf_relaxation_time",
+            "sf_strength",
+            "sf_range",
+            "threads",
+        ],
+    ),
+];
+
+/// The block a parameter belongs to, `"core"` for the core parameters.
+pub fn group(name: &str) -> &'static str {
+    BLOCKS
+        .iter()
+        .find(|(_, names)| names.contains(&name))
+        .map_or("core", |(block, _)| block)
+}
+
 fn unknown(name: &str) -> TrackError {
     let known: Vec<&str> = PARAMS.iter().map(|p| p.name).collect();
     TrackError::InvalidParameter(format!(
@@ -563,16 +602,15 @@ fn unknown(name: &str) -> TrackError {
 impl TrackerParams {
     /// The DensePeds paper's plain tracker (appearance then FRVO-predicted IoU, each solved
     /// optimally; no score thresholds, no second pass, no recovery, no size, position or
-    /// adaptive smoothing, only matched tracks reported, the motion model in image pixels).
+    /// adaptive smoothing, only matched tracks reported).
     /// Equivalent to the keyword arguments `det_threshold=-inf, new_track_threshold=-inf,
     /// second_pass=False, recovery=False, size_smoothing=0, position_smoothing=0,
     /// jitter_floor=0, thresholded_low_iou=1, output_lost=0, occluded_output=0,
-    /// score_scale="absolute", score_quantile_floor=0, score_quantile_ceiling=0,
-    /// motion_person_height=0, coast_aspect=False, coast_aspect_quantile=0,
+    /// score_quantile_floor=0, score_quantile_ceiling=0,
+    /// coast_aspect=False, coast_aspect_quantile=0,
     /// coast_min_hits=0, tentative_max_age=0, reid_newborn=0`. Other fields keep their defaults.
     pub fn pure() -> Self {
         Self {
-            score_scale: ScoreScale::Absolute,
             score_quantile_floor: 0.0,
             score_quantile_ceiling: 0.0,
             det_threshold: f64::NEG_INFINITY,
@@ -588,10 +626,28 @@ impl TrackerParams {
             coast_aspect: false,
             coast_aspect_quantile: 0.0,
             coast_min_hits: 0,
-            motion_person_height: 0.0,
             tentative_max_age: 0,
             reid_newborn: 0,
             ..Self::default()
+        }
+    }
+
+    /// How the score thresholds are read (the `score_*` parameters).
+    pub fn score_reading(&self) -> ScoreReading {
+        ScoreReading {
+            window: self.score_window,
+            warm_up: self.score_warm_up,
+            quantile_floor: self.score_quantile_floor,
+            quantile_ceiling: self.score_quantile_ceiling,
+        }
+    }
+
+    /// The score thresholds as given (`det_threshold`, `new_track_threshold`, `low_threshold`).
+    pub fn score_thresholds(&self) -> ScoreCuts {
+        ScoreCuts {
+            det: self.det_threshold,
+            new_track: self.new_track_threshold,
+            low: self.low_threshold,
         }
     }
 
@@ -778,6 +834,18 @@ mod tests {
             ..MotionParams::default()
         };
         assert!(TrackerParams::validate_motion(&m).is_err());
+    }
+
+    #[test]
+    fn every_block_names_declared_parameters_and_the_core_is_small() {
+        for (block, names) in BLOCKS {
+            for name in *names {
+                assert!(spec(name).is_some(), "{block}: {name}");
+                assert_eq!(group(name), *block, "{name} in two blocks");
+            }
+        }
+        let core = PARAMS.iter().filter(|s| group(s.name) == "core").count();
+        assert!(core <= 15, "{core} core parameters");
     }
 
     #[test]

@@ -8,12 +8,15 @@
 //! mean of those first embeddings) is compared with the galleries of the confirmed tracks that
 //! have been lost since before it was born. If the nearest is within the distance a match apart
 //! from the prediction needs (`appearance_threshold` and `appearance_apart`) and nearer than
-//! every other such lost track by `reid_margin`, the new track carries the lost track's id (and
+//! every other such lost track by [`REID_MARGIN`], the new track carries the lost track's id (and
 //! its count of matches) from that frame on and the lost track ends. Ids already reported stay
 //! as they were: the decision is online.
 
 use crate::params::TrackerParams;
 use crate::track::Track;
+
+/// How much nearer in cosine distance the chosen lost track must be than every other lost track.
+pub(crate) const REID_MARGIN: f64 = 0.15;
 
 /// Applies the rule to the tracks after this frame's matches (`matched[i]`: track `i` was matched
 /// this frame). Returns the number of tracks merged.
@@ -51,7 +54,7 @@ pub(crate) fn merge_newborn(tracks: &mut Vec<Track>, matched: &[bool], p: &Track
             }
         }
         let (d, a) = best;
-        if a != usize::MAX && d <= limit && d + p.reid_margin <= second {
+        if a != usize::MAX && d <= limit && d + REID_MARGIN <= second {
             ended[a] = true;
             let (id, hits) = (tracks[a].id, tracks[a].hits);
             let t = &mut tracks[b];

@@ -1,19 +1,12 @@
-//! The scale the score thresholds are read in, learned online from the scores the tracker sees,
-//! so that one set of thresholds serves detectors whose scores differ in range and shape (an
-//! unbounded detector score, a file already cut at 0.5, a quantised network's shifted scores).
+//! The score cuts of one frame, read from the scores the tracker has seen, so that one set of
+//! thresholds serves detectors whose scores differ in range and shape (an unbounded detector
+//! score mapped into `[0, 1]`, a file already cut at 0.5, a quantised network's shifted scores).
+//! The thresholds are compared with the scores as given, with two guards (the score calibration
+//! block):
 //!
-//! [`ScoreScale::Absolute`] compares scores with the thresholds as given. [`ScoreScale::Range`]
-//! reads a threshold `t` as a place in the range of the scores seen so far: the raw cut is
-//! `lo + t * (hi - lo)`, `lo` the lowest score seen (the detector's floor) and `hi` the highest,
-//! at least 1 (until `warm_up` scores have been seen, `lo` is at most 0, so that a detector in
-//! `[0, 1]` starts with its scores as given). [`ScoreScale::Rank`] reads `t` as a fraction of the
-//! last `window` scores: the raw cut is their `t`-quantile (the smallest of them with at least a
-//! fraction `t` of them at or below it; `t <= 0` keeps every score, `t > 1` none); until
-//! `warm_up` scores have been seen it reads `t` as `Range` does.
-//!
-//! Whatever the scale, `score_quantile_floor` (a fraction `q`, 0: off) keeps the lowest scores of
-//! the window out of the matching stages and births: after warm-up, `det_threshold` and
-//! `new_track_threshold` are raised to at least the `q`-quantile of the last `window` scores.
+//! `score_quantile_floor` (a fraction `q`, 0: off) keeps the lowest scores of the window out of
+//! the matching stages and births: after warm-up, `det_threshold` and `new_track_threshold` are
+//! raised to at least the `q`-quantile of the last `window` scores.
 //!
 //! `score_quantile_ceiling` (a fraction `c`, 0: off) keeps a detector whose scores sit below the
 //! cuts from being ignored: where the `c`-quantile of the last `window` scores (before warm-up:
@@ -23,15 +16,37 @@
 //! `new_track_threshold` likewise, compared with the same quantile. The ratio reading undoes a
 //! detector whose scores are today's multiplied by a constant; the quantile bounds any other
 //! monotone squeeze. A detector whose cuts reject fewer than a fraction `c` of its scores is
-//! read as before. The ceiling guards the absolute scale only: the range and rank scales follow
-//! the scores already. The quantile floor applies after the ceiling.
+//! read as before. The quantile floor applies after the ceiling.
 //!
-//! The tracker converts its thresholds once per frame, after observing that frame's scores, and
-//! compares the raw scores with the converted cuts (a score passes a cut when `score >= cut`).
+//! The tracker reads its cuts once per frame, after observing that frame's scores, and compares
+//! the raw scores with them (a score passes a cut when `score >= cut`).
 
-use crate::params::TrackerParams;
-pub use crate::params::{ScoreScale, SCORE_SCALE_NAMES};
 use std::collections::VecDeque;
+
+/// How the score thresholds are read: the `score_*` parameters of the tracker.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ScoreReading {
+    /// Scores (the last ones seen) whose quantiles are read.
+    pub window: usize,
+    /// Scores to see before quantiles are used.
+    pub warm_up: usize,
+    /// `score_quantile_floor` (0: off).
+    pub quantile_floor: f64,
+    /// `score_quantile_ceiling` (0: off).
+    pub quantile_ceiling: f64,
+}
+
+/// The three score thresholds: as the caller gives them, or as raw cuts of one frame
+/// ([`ScoreScaler::cuts`]). A score passes a cut when `score >= cut`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ScoreCuts {
+    /// Detections from here take part in every matching stage (`det_threshold`).
+    pub det: f64,
+    /// Detections from here (and from `det`) may start a track (`new_track_threshold`).
+    pub new_track: f64,
+    /// The lowest score of the second pass (`low_threshold`).
+    pub low: f64,
+}
 
 /// The scores seen so far: their count, lowest and highest, and the last `window` of them.
 #[derive(Clone, Debug)]
@@ -75,7 +90,7 @@ impl ScoreScaler {
     }
 
     /// Records one frame's scores (NaN is not expected: the tracker rejects it first); only the
-    /// last `window` are kept for [`ScoreScale::Rank`].
+    /// last `window` are kept for the quantiles.
     pub fn observe(&mut self, scores: &[f64], window: usize) {
         for &s in scores {
             self.seen += 1;
@@ -92,32 +107,8 @@ impl ScoreScaler {
         }
     }
 
-    /// The raw score that threshold `t` stands for in `scale` (`t` itself before any score).
-    pub fn cut(&self, scale: ScoreScale, t: f64, warm_up: usize) -> f64 {
-        if self.seen == 0 || t.is_infinite() {
-            return t;
-        }
-        match scale {
-            ScoreScale::Absolute => t,
-            ScoreScale::Rank if self.seen >= warm_up && !self.sorted.is_empty() => self.quantile(t),
-            ScoreScale::Range | ScoreScale::Rank => {
-                let lo = if self.seen < warm_up {
-                    self.lo.min(0.0)
-                } else {
-                    self.lo
-                };
-                let hi = self.hi.max(1.0);
-                if hi > lo && (hi - lo).is_finite() {
-                    lo + t * (hi - lo)
-                } else {
-                    t
-                }
-            }
-        }
-    }
-
-    /// The score from which a detection of the last [`ScoreScaler::scaled`] call was confident
-    /// by the cuts as the score scale (and `score_quantile_ceiling`) read them, before
+    /// The score from which a detection of the last [`ScoreScaler::cuts`] call was confident
+    /// by the cuts as `score_quantile_ceiling` reads them, before
     /// `score_quantile_floor` raised them: the larger of `det_threshold` and
     /// `new_track_threshold` there.
     pub fn confident_cut(&self) -> f64 {
@@ -163,50 +154,34 @@ impl ScoreScaler {
         }
     }
 
-    /// Observes one frame's scores, then returns `params` with its score thresholds
-    /// (`det_threshold`, `new_track_threshold`, `low_threshold`) replaced by the raw cuts they
-    /// stand for in `params.score_scale`.
-    pub fn scaled(&mut self, params: &TrackerParams, scores: &[f64]) -> TrackerParams {
-        let mut p = params.clone();
-        self.observe(scores, p.score_window);
-        for t in [
-            &mut p.det_threshold,
-            &mut p.new_track_threshold,
-            &mut p.low_threshold,
-        ] {
-            *t = self.cut(p.score_scale, *t, p.score_warm_up);
-        }
-        if p.score_quantile_ceiling > 0.0 && self.seen > 0 && p.score_scale == ScoreScale::Absolute
-        {
-            let q = if self.seen >= p.score_warm_up {
-                self.quantile(p.score_quantile_ceiling)
+    /// Observes one frame's scores, then returns the raw cuts that the thresholds `given` stand
+    /// for under `reading` (see the module doc).
+    pub fn cuts(&mut self, reading: &ScoreReading, given: ScoreCuts, scores: &[f64]) -> ScoreCuts {
+        self.observe(scores, reading.window);
+        let mut c = given;
+        if reading.quantile_ceiling > 0.0 && self.seen > 0 {
+            let q = if self.seen >= reading.warm_up {
+                self.quantile(reading.quantile_ceiling)
             } else {
                 self.hi
             };
-            let starved = q < p.det_threshold;
-            let new_starved = q < p.new_track_threshold;
-            for (cut, t, gated) in [
-                (&mut p.det_threshold, params.det_threshold, starved),
-                (
-                    &mut p.new_track_threshold,
-                    params.new_track_threshold,
-                    new_starved,
-                ),
-            ] {
-                if gated {
-                    *cut = cut.min(q).min(self.ratio_cut(t));
-                }
+            let starved = q < c.det;
+            if starved {
+                c.det = c.det.min(q).min(self.ratio_cut(given.det));
+            }
+            if q < c.new_track {
+                c.new_track = c.new_track.min(q).min(self.ratio_cut(given.new_track));
             }
             if starved {
-                p.low_threshold = p.low_threshold.min(self.ratio_cut(params.low_threshold));
+                c.low = c.low.min(self.ratio_cut(given.low));
             }
         }
-        self.confident_cut = p.det_threshold.max(p.new_track_threshold);
-        if p.score_quantile_floor > 0.0 && self.seen >= p.score_warm_up {
-            let q = self.quantile(p.score_quantile_floor);
-            p.det_threshold = p.det_threshold.max(q);
-            p.new_track_threshold = p.new_track_threshold.max(q);
+        self.confident_cut = c.det.max(c.new_track);
+        if reading.quantile_floor > 0.0 && self.seen >= reading.warm_up {
+            let q = self.quantile(reading.quantile_floor);
+            c.det = c.det.max(q);
+            c.new_track = c.new_track.max(q);
         }
-        p
+        c
     }
 }

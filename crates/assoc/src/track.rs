@@ -7,7 +7,6 @@
 
 use crate::cost::{box_from_centre, centre, max_dot, normalise, BBox};
 use crate::params::TrackerParams;
-use crate::perspective::GroundMap;
 use nalgebra::Vector2;
 use std::collections::VecDeque;
 
@@ -33,9 +32,8 @@ pub(crate) struct Track {
     pub last_obs_frame: u64,
     /// The frame of the track's first detection.
     pub born: u64,
-    /// Recent matched centres and foot rows `(frame, centre, foot y)`, for the preferred
-    /// velocity.
-    history: VecDeque<(u64, Vector2<f64>, f64)>,
+    /// Recent matched centres `(frame, centre)`, for the preferred velocity.
+    history: VecDeque<(u64, Vector2<f64>)>,
     pub hits: u32,
     pub time_since_update: u32,
     /// Unmatched this frame and hidden behind people nearer the camera.
@@ -82,7 +80,7 @@ impl Track {
             last_obs: bbox,
             last_obs_frame: frame,
             born: frame,
-            history: VecDeque::from([(frame, c, bbox[3])]),
+            history: VecDeque::from([(frame, c)]),
             hits: 1,
             time_since_update: 0,
             occluded: false,
@@ -98,36 +96,15 @@ impl Track {
         t
     }
 
-    /// The track as a motion-model agent. While unmatched, its preferred velocity decays by
-    /// `coast_damping` per frame lost.
+    /// The track as a motion-model agent.
     pub fn agent(&self, p: &TrackerParams) -> frvo::Agent {
-        let damping = p
-            .coast_damping
-            .powi(self.time_since_update.min(1 << 20) as i32);
         frvo::Agent::new(
             self.pos,
             self.vel,
-            self.pref_vel * damping,
+            self.pref_vel,
             p.ellipse_l_scale * self.h,
             p.ellipse_w_scale * self.w,
         )
-    }
-
-    /// The preferred velocity on the ground: the mean ground velocity of the matched feet in
-    /// the history (the image one's ground image at the current foot when there is one entry).
-    pub fn ground_pref_vel(&self, g: &GroundMap, p: &TrackerParams) -> Vector2<f64> {
-        let damping = p
-            .coast_damping
-            .powi(self.time_since_update.min(1 << 20) as i32);
-        let foot = |c: Vector2<f64>, y: f64| g.to_ground(Vector2::new(c.x, y));
-        let (f0, c0, y0) = self.history[0];
-        let (f1, c1, y1) = self.history[self.history.len() - 1];
-        let v = if f1 > f0 {
-            (foot(c1, y1) - foot(c0, y0)) / (f1 - f0) as f64
-        } else {
-            g.jacobian(self.pos + Vector2::new(0.0, 0.5 * self.h)) * self.pref_vel
-        };
-        v * damping
     }
 
     /// Stores this frame's prediction: the centre's velocity and the box's change of size
@@ -194,11 +171,11 @@ impl Track {
         } else {
             observed * p.velocity_smoothing + self.vel * (1.0 - p.velocity_smoothing)
         };
-        self.history.push_back((frame, raw, det[3]));
+        self.history.push_back((frame, raw));
         while self.history.len() > p.pref_window + 1 {
             self.history.pop_front();
         }
-        let (f0, c0, _) = self.history[0];
+        let (f0, c0) = self.history[0];
         self.pref_vel = if frame > f0 {
             (raw - c0) / (frame - f0) as f64
         } else {

@@ -1,10 +1,10 @@
-//! `left_image_inside`: an unmatched track whose predicted box lies partly outside the image is
-//! judged to have left (deleted, no longer reported) once less than this share of it is inside.
+//! An unmatched track whose predicted box lies partly outside the image is judged to have left
+//! (deleted, no longer reported) once less than 90% of it is inside.
 
 use assoc::{TrackOutput, Tracker, TrackerParams};
 use frvo::MotionKind;
 
-fn params(left_image_inside: f64) -> TrackerParams {
+fn params() -> TrackerParams {
     TrackerParams {
         motion: MotionKind::ConstantVelocity,
         n_init: 1,
@@ -13,7 +13,6 @@ fn params(left_image_inside: f64) -> TrackerParams {
         output_lost: 5,
         output_lost_adaptive: false,
         coast_min_hits: 0,
-        left_image_inside,
         ..TrackerParams::default()
     }
 }
@@ -31,8 +30,8 @@ fn run(t: &mut Tracker, boxes: &[[f64; 4]]) -> Vec<TrackOutput> {
 /// wide), beside a second person standing still in the middle of the image and detected
 /// throughout; returns, per frame after the walker's last detection, whether the walker is
 /// still a live track and whether it is reported.
-fn walk(left_image_inside: f64, last_x1: f64, frames: usize) -> Vec<(bool, bool)> {
-    let mut t = Tracker::new(params(left_image_inside)).unwrap();
+fn walk(last_x1: f64, frames: usize) -> Vec<(bool, bool)> {
+    let mut t = Tracker::new(params()).unwrap();
     t.set_image_size(640.0, 480.0).unwrap();
     let still = bx(300.0);
     let mut walker_id = 0;
@@ -51,31 +50,32 @@ fn walk(left_image_inside: f64, last_x1: f64, frames: usize) -> Vec<(bool, bool)
 
 #[test]
 fn a_track_leaving_the_image_is_deleted_from_the_share_inside() {
-    // Last seen at x 600..640, touching the right edge; predicted at 608..648 (80% inside),
-    // 616..656 (60%), 624..664 (40%), 632..672 (20%).
-    let at = |v| walk(v, 600.0, 4);
+    // Last seen at x 600..640, touching the right edge; predicted at 608..648 (80% inside): left.
+    assert_eq!(walk(600.0, 4), vec![(false, false); 4]);
+    // Last seen at x 560..600: predicted at 568..608 (wholly inside), 576..616 (also inside),
+    // 584..624 and 592..632 (inside): kept and reported (output_lost).
+    assert_eq!(walk(560.0, 4), vec![(true, true); 4]);
+    // Last seen at x 564..604: predicted at 572..612, 580..620, 588..628, 596..636 (inside),
+    // then 604..644 (90% inside: kept), 612..652 (70%: left).
     assert_eq!(
-        at(0.5),
-        vec![(true, true), (true, true), (false, false), (false, false)]
+        walk(564.0, 6),
+        vec![
+            (true, true),
+            (true, true),
+            (true, true),
+            (true, true),
+            (true, true),
+            (false, false)
+        ]
     );
-    assert_eq!(
-        at(0.7),
-        vec![(true, true), (false, false), (false, false), (false, false)]
-    );
-    assert_eq!(at(0.9), vec![(false, false); 4]);
-    // At 1.0 any part outside is enough; a box wholly inside is kept and reported
-    // (output_lost) at every share.
-    assert_eq!(walk(1.0, 600.0, 1), vec![(false, false)]);
-    for v in [0.5, 0.9, 1.0] {
-        assert_eq!(walk(v, 400.0, 3), vec![(true, true); 3], "share {v}");
-    }
+    assert_eq!(walk(400.0, 3), vec![(true, true); 3]);
 }
 
 #[test]
 fn without_an_image_size_or_scene_reasoning_nothing_leaves() {
     let mut t = Tracker::new(TrackerParams {
         occluded_output: 0,
-        ..params(0.9)
+        ..params()
     })
     .unwrap();
     t.set_image_size(640.0, 480.0).unwrap();
@@ -84,7 +84,7 @@ fn without_an_image_size_or_scene_reasoning_nothing_leaves() {
     }
     run(&mut t, &[]);
     assert_eq!(t.num_tracks(), 1, "occluded_output 0: no scene reasoning");
-    let mut t = Tracker::new(params(0.9)).unwrap();
+    let mut t = Tracker::new(params()).unwrap();
     for k in (0..8).rev() {
         run(&mut t, &[bx(600.0 - 8.0 * f64::from(k))]);
     }

@@ -4,13 +4,12 @@
 use assoc::{Embeddings, TrackOutput, Tracker, TrackerParams};
 use frvo::MotionKind;
 
-fn params(reid_newborn: u32, reid_margin: f64) -> TrackerParams {
+fn params(reid_newborn: u32) -> TrackerParams {
     TrackerParams {
         motion: MotionKind::ConstantVelocity,
         output_lost: 0,
         coast_min_hits: 0,
         reid_newborn,
-        reid_margin,
         ..TrackerParams::default()
     }
 }
@@ -63,12 +62,12 @@ fn come_back(p: TrackerParams, walkers: &[[f32; 3]], back: [f32; 3]) -> (u64, Ve
 #[test]
 fn a_walker_back_away_from_the_prediction_gets_the_id_back_after_enough_matches() {
     // Without the rule the walker comes back under a new id for good.
-    let (first, ids) = come_back(params(0, 0.15), &[WALKER], WALKER);
+    let (first, ids) = come_back(params(0), &[WALKER], WALKER);
     assert_eq!(ids.len(), 7, "{ids:?}"); // reported from the second match (n_init 2)
     assert!(ids.iter().all(|&i| i != first), "{ids:?}");
     // With it, the new track is reported under its own id until its third match, then under the
     // walker's, to the end.
-    let (first, ids) = come_back(params(3, 0.15), &[WALKER], WALKER);
+    let (first, ids) = come_back(params(3), &[WALKER], WALKER);
     assert_eq!(ids.len(), 7, "{ids:?}");
     assert_ne!(ids[0], first, "{ids:?}");
     assert!(ids[1..].iter().all(|&i| i == first), "{ids:?}");
@@ -78,7 +77,7 @@ fn a_walker_back_away_from_the_prediction_gets_the_id_back_after_enough_matches(
 
 #[test]
 fn a_stranger_keeps_their_own_id() {
-    let (first, ids) = come_back(params(3, 0.0), &[WALKER], STRANGER);
+    let (first, ids) = come_back(params(3), &[WALKER], STRANGER);
     assert_eq!(ids.len(), 7);
     assert!(ids.iter().all(|&i| i != first && i == ids[0]), "{ids:?}");
 }
@@ -88,9 +87,6 @@ fn two_lost_walkers_alike_within_the_margin_keep_the_new_id() {
     // A second lost walker at cosine distance 0.02 from the first: the person who comes back is
     // nearer the first, but not by the margin.
     let twin: [f32; 3] = [0.98, (1.0f32 - 0.98 * 0.98).sqrt(), 0.0];
-    let (first, ids) = come_back(params(3, 0.15), &[WALKER, twin], WALKER);
+    let (first, ids) = come_back(params(3), &[WALKER, twin], WALKER);
     assert!(ids.iter().all(|&i| i != first), "{ids:?}");
-    // Without a margin the nearer one is taken.
-    let (first, ids) = come_back(params(3, 0.0), &[WALKER, twin], WALKER);
-    assert_eq!(ids.last(), Some(&first), "{ids:?}");
 }

@@ -1,8 +1,8 @@
-//! Score scales: the cuts against brute force over the scores seen, and the tracker's behaviour
-//! under each scale (a floor-cut detector read from its floor, rank invariant to any increasing
-//! map of the scores, the pure tracker unchanged).
+//! The score reading: the cuts against brute force over the scores seen (quantile floor and
+//! ceiling), and the tracker's behaviour under them (a detector scaled down tracked as the
+//! original, a self-thresholded detector's bottom scores, the pure tracker unchanged).
 
-use assoc::{ScoreScale, ScoreScaler, TrackOutput, Tracker, TrackerParams};
+use assoc::{ScoreScaler, TrackOutput, Tracker, TrackerParams};
 use frvo::MotionKind;
 
 /// A small deterministic generator (no dependency): uniform in [0, 1).
@@ -34,50 +34,6 @@ fn brute_quantile(window: &[f64], t: f64) -> f64 {
         .fold(f64::INFINITY, f64::min)
 }
 
-const THRESHOLDS: [f64; 9] = [-0.5, 0.0, 0.01, 0.1, 0.3, 0.5, 0.77, 1.0, 1.5];
-
-#[test]
-fn rank_cut_is_the_quantile_of_the_last_window_scores() {
-    let mut rng = Lcg(7);
-    for (window, warm_up, ties) in [
-        (50, 0, false),
-        (37, 10, true),
-        (1, 0, false),
-        (400, 0, true),
-    ] {
-        let mut s = ScoreScaler::new();
-        let mut all: Vec<f64> = Vec::new();
-        for frame in 0..60 {
-            let n = (rng.next() * 12.0) as usize; // empty frames too
-            let scores: Vec<f64> = (0..n)
-                .map(|_| {
-                    let x = 40.0 * rng.next() - 3.0;
-                    if ties {
-                        x.round()
-                    } else {
-                        x
-                    }
-                })
-                .collect();
-            s.observe(&scores, window);
-            all.extend(&scores);
-            if all.is_empty() {
-                continue;
-            }
-            let last = &all[all.len().saturating_sub(window)..];
-            for t in THRESHOLDS {
-                let got = s.cut(ScoreScale::Rank, t, warm_up);
-                let want = if all.len() >= warm_up {
-                    brute_quantile(last, t)
-                } else {
-                    s.cut(ScoreScale::Range, t, warm_up)
-                };
-                assert_eq!(got, want, "window {window} frame {frame} t {t}");
-            }
-        }
-    }
-}
-
 #[test]
 fn quantile_floor_raises_det_and_new_cuts_to_the_window_quantile() {
     let mut rng = Lcg(13);
@@ -89,12 +45,10 @@ fn quantile_floor_raises_det_and_new_cuts_to_the_window_quantile() {
             ..TrackerParams::default()
         };
         let mut s = ScoreScaler::new();
-        let mut reference = ScoreScaler::new();
         let mut all: Vec<f64> = Vec::new();
         for _ in 0..25 {
             let scores: Vec<f64> = (0..5).map(|_| 0.5 + 0.5 * rng.next()).collect();
-            let got = s.scaled(&p, &scores);
-            reference.observe(&scores, window);
+            let got = s.cuts(&p.score_reading(), p.score_thresholds(), &scores);
             all.extend(&scores);
             let last = &all[all.len().saturating_sub(window)..];
             let floor = if all.len() >= warm_up {
@@ -102,96 +56,15 @@ fn quantile_floor_raises_det_and_new_cuts_to_the_window_quantile() {
             } else {
                 f64::NEG_INFINITY
             };
-            let scale = |t| reference.cut(p.score_scale, t, warm_up);
-            assert_eq!(got.det_threshold, scale(p.det_threshold).max(floor));
-            assert_eq!(
-                got.new_track_threshold,
-                scale(p.new_track_threshold).max(floor)
-            );
-            assert_eq!(got.low_threshold, scale(p.low_threshold));
+            assert_eq!(got.det, p.det_threshold.max(floor));
+            assert_eq!(got.new_track, p.new_track_threshold.max(floor));
+            assert_eq!(got.low, p.low_threshold);
         }
-    }
-}
-
-#[test]
-fn range_cut_places_the_threshold_between_floor_and_highest() {
-    let mut rng = Lcg(11);
-    for (lo, width, warm_up) in [(0.5, 0.5, 0), (-3.0, 140.0, 20), (0.1, 0.6, 5)] {
-        let mut s = ScoreScaler::new();
-        let mut all: Vec<f64> = Vec::new();
-        for _ in 0..30 {
-            let scores: Vec<f64> = (0..4).map(|_| lo + width * rng.next()).collect();
-            s.observe(&scores, 3);
-            all.extend(&scores);
-            let mut floor = all.iter().copied().fold(f64::INFINITY, f64::min);
-            if all.len() < warm_up {
-                floor = floor.min(0.0);
-            }
-            let high = all.iter().copied().fold(1.0, f64::max);
-            for t in THRESHOLDS {
-                let got = s.cut(ScoreScale::Range, t, warm_up);
-                let want = floor + t * (high - floor);
-                assert!(
-                    (got - want).abs() <= 1e-12 * want.abs().max(1.0),
-                    "{got} vs {want}"
-                );
-                assert_eq!(s.cut(ScoreScale::Absolute, t, warm_up), t);
-            }
-        }
-    }
-}
-
-#[test]
-fn nothing_seen_and_infinite_thresholds_are_kept() {
-    let mut s = ScoreScaler::new();
-    assert_eq!(s.cut(ScoreScale::Range, 0.3, 0), 0.3);
-    assert_eq!(s.cut(ScoreScale::Rank, 0.3, 0), 0.3);
-    s.observe(&[0.6, 0.9], 10);
-    for scale in [ScoreScale::Range, ScoreScale::Rank] {
-        assert_eq!(s.cut(scale, f64::NEG_INFINITY, 0), f64::NEG_INFINITY);
-        assert_eq!(s.cut(scale, f64::INFINITY, 0), f64::INFINITY);
-    }
-    s.reset();
-    assert_eq!((s.seen(), s.cut(ScoreScale::Range, 0.3, 0)), (0, 0.3));
-}
-
-fn params(scale: ScoreScale) -> TrackerParams {
-    TrackerParams {
-        motion: MotionKind::ConstantVelocity,
-        n_init: 1,
-        output_lost: 0,
-        score_scale: scale,
-        score_warm_up: 0,
-        score_quantile_floor: 0.0,
-        ..TrackerParams::default()
     }
 }
 
 fn bx(cx: f64, cy: f64) -> [f64; 4] {
     [cx - 20.0, cy - 50.0, cx + 20.0, cy + 50.0]
-}
-
-/// People walking right, one row each, with clutter boxes of random scores in between.
-fn scene(seed: u64, frames: usize) -> Vec<(Vec<f64>, Vec<f64>)> {
-    let mut rng = Lcg(seed);
-    (0..frames)
-        .map(|k| {
-            let mut boxes = Vec::new();
-            let mut scores = Vec::new();
-            for p in 0..6 {
-                boxes.extend(bx(
-                    100.0 + 4.0 * k as f64 + 30.0 * p as f64,
-                    150.0 * p as f64,
-                ));
-                scores.push(0.4 + 0.6 * rng.next());
-            }
-            for _ in 0..3 {
-                boxes.extend(bx(2000.0 * rng.next(), 1000.0 * rng.next()));
-                scores.push(rng.next());
-            }
-            (boxes, scores)
-        })
-        .collect()
 }
 
 fn track(p: TrackerParams, frames: &[(Vec<f64>, Vec<f64>)]) -> Vec<Vec<(u64, Option<usize>)>> {
@@ -206,62 +79,15 @@ fn track(p: TrackerParams, frames: &[(Vec<f64>, Vec<f64>)]) -> Vec<Vec<(u64, Opt
 }
 
 #[test]
-fn rank_scale_tracks_the_same_under_any_increasing_map_of_the_scores() {
-    let frames = scene(3, 40);
-    let mapped: Vec<_> = frames
-        .iter()
-        .map(|(b, s)| (b.clone(), s.iter().map(|x| 7.0 + (3.0 * x).exp()).collect()))
-        .collect();
-    let rank = TrackerParams {
-        score_window: 50,
-        ..params(ScoreScale::Rank)
-    };
-    let a = track(rank.clone(), &frames);
-    assert_eq!(a, track(rank, &mapped));
-    // Read as given, the mapped scores (all above 8) pass every cut: the tracking differs.
-    let abs = params(ScoreScale::Absolute);
-    assert_ne!(track(abs.clone(), &frames), track(abs, &mapped));
-}
-
-#[test]
-fn range_scale_reads_a_floor_cut_detector_from_its_floor() {
-    // Scores from 0.5 (a detector cut at 0.5): det/new thresholds 0.3 cut at 0.65 in the range
-    // scale, so the 0.6 detection starts no track there but does with absolute thresholds.
-    let boxes: Vec<f64> = [bx(100.0, 100.0), bx(400.0, 100.0), bx(700.0, 100.0)]
-        .iter()
-        .flatten()
-        .copied()
-        .collect();
-    let scores = [0.5, 1.0, 0.6];
-    let started = |scale| {
-        let mut t = Tracker::new(params(scale)).unwrap();
-        let out = t.update(&boxes, &scores, None).unwrap();
-        out.iter().filter_map(|o| o.det_index).collect::<Vec<_>>()
-    };
-    assert_eq!(started(ScoreScale::Range), vec![1]);
-    assert_eq!(started(ScoreScale::Absolute), vec![0, 1, 2]);
-    let cut = |t: f64| 0.5 + t * 0.5;
-    assert!(0.6 < cut(0.3) && 1.0 >= cut(0.3));
-}
-
-#[test]
-fn pure_tracker_reads_scores_as_given_and_the_range_scale_reads_the_range() {
-    assert_eq!(TrackerParams::pure().score_scale, ScoreScale::Absolute);
+fn the_pure_tracker_reads_scores_as_given() {
     assert_eq!(TrackerParams::pure().score_quantile_floor, 0.0);
     assert_eq!(TrackerParams::pure().score_quantile_ceiling, 0.0);
-    let p = TrackerParams {
-        score_scale: ScoreScale::Range,
-        ..TrackerParams::default()
-    };
     let mut s = ScoreScaler::new();
-    s.observe(&[2.0, 4.0], p.score_window);
-    let q = s.scaled(&p, &[]);
-    // Before warm-up the floor is at most 0: 0.3 of [0, 4].
-    assert!((q.det_threshold - 0.3 * 4.0).abs() < 1e-12);
-    assert!((q.low_threshold - p.low_threshold * 4.0).abs() < 1e-12);
+    s.observe(&[2.0, 4.0], 10);
     let pure = TrackerParams::pure();
-    let q = s.scaled(&pure, &[]);
-    assert_eq!(q.det_threshold, f64::NEG_INFINITY);
+    let q = s.cuts(&pure.score_reading(), pure.score_thresholds(), &[0.1]);
+    assert_eq!(q, pure.score_thresholds());
+    assert_eq!(q.det, f64::NEG_INFINITY);
 }
 
 #[test]
@@ -289,10 +115,10 @@ fn quantile_ceiling_lowers_starved_cuts_to_the_window_quantile_and_ratio_reading
         for _ in 0..30 {
             let n = (rng.next() * 6.0) as usize;
             let scores: Vec<f64> = (0..n).map(|_| lo + width * rng.next()).collect();
-            let got = s.scaled(&p, &scores);
+            let got = s.cuts(&p.score_reading(), p.score_thresholds(), &scores);
             all.extend(&scores);
             if all.is_empty() {
-                assert_eq!(got, p);
+                assert_eq!(got, p.score_thresholds());
                 continue;
             }
             let last = &all[all.len().saturating_sub(window)..];
@@ -316,9 +142,9 @@ fn quantile_ceiling_lowers_starved_cuts_to_the_window_quantile_and_ratio_reading
             let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b.abs().max(1.0);
             let det = guard(p.det_threshold);
             lowered += usize::from(det < p.det_threshold);
-            assert!(close(got.det_threshold, det.max(floor)));
+            assert!(close(got.det, det.max(floor)));
             assert!(close(
-                got.new_track_threshold,
+                got.new_track,
                 guard(p.new_track_threshold).max(floor)
             ));
             let low = if ceiling < p.det_threshold {
@@ -326,7 +152,7 @@ fn quantile_ceiling_lowers_starved_cuts_to_the_window_quantile_and_ratio_reading
             } else {
                 p.low_threshold
             };
-            assert!(close(got.low_threshold, low));
+            assert!(close(got.low, low));
         }
         // Squeezed scores lower the cuts; scores above them never do.
         if width <= 0.3 {

@@ -1,6 +1,6 @@
 //! Tracker behaviour: lifecycle, crossing, appearance stage, options, determinism, bad input.
 
-use assoc::{Embeddings, ParamValue, ScoreScale, TrackError, TrackOutput, Tracker, TrackerParams};
+use assoc::{Embeddings, ParamValue, TrackError, TrackOutput, Tracker, TrackerParams};
 use frvo::MotionKind;
 
 /// Defaults with constant velocity and only matched tracks reported (the lifecycle tests count
@@ -453,12 +453,7 @@ fn a_track_with_nothing_in_front_is_not_kept_as_occluded() {
 /// A person walks right at 8 px/frame until their box touches the right edge of a 640 px wide
 /// image, then is no longer detected; returns the live tracks after each of 4 empty frames.
 fn walk_out(occluded_output: u32, image_size: bool) -> Vec<usize> {
-    // Left below half inside (the default's share is tested in tests/left_image.rs).
-    let mut t = Tracker::new(TrackerParams {
-        left_image_inside: 0.5,
-        ..occlusion_params(occluded_output)
-    })
-    .unwrap();
+    let mut t = Tracker::new(occlusion_params(occluded_output)).unwrap();
     if image_size {
         t.set_image_size(640.0, 480.0).unwrap();
     }
@@ -475,8 +470,8 @@ fn walk_out(occluded_output: u32, image_size: bool) -> Vec<usize> {
 
 #[test]
 fn a_track_that_leaves_the_image_is_deleted() {
-    // Predicted boxes: x 608..648 (80% inside), 616..656 (60%), 624..664 (40%: left).
-    assert_eq!(walk_out(30, true), vec![1, 1, 0, 0]);
+    // Predicted box: x 608..648, 80% inside (below 90%: left).
+    assert_eq!(walk_out(30, true), vec![0, 0, 0, 0]);
     // Without an image size nothing is judged to have left.
     assert_eq!(walk_out(30, false), vec![1, 1, 1, 1]);
     // Without scene reasoning the track lives on until max_age.
@@ -489,49 +484,6 @@ fn image_size_is_validated() {
     assert!(t.set_image_size(0.0, 480.0).is_err());
     assert!(t.set_image_size(640.0, f64::NAN).is_err());
     assert!(t.set_image_size(640.0, 480.0).is_ok());
-}
-
-/// A detector whose scores start at its own floor of 0.5: warm-up frames of people far apart
-/// (scores 0.5-0.95), then a new person scoring 0.55 (just above the floor) and one scoring 0.95.
-/// Returns which of the two were reported (tracks start and are confirmed at once).
-fn births_from_a_floored_detector(score_scale: ScoreScale) -> (bool, bool) {
-    let mut t = Tracker::new(TrackerParams {
-        n_init: 1,
-        score_scale,
-        score_quantile_floor: 0.0,
-        score_warm_up: 10,
-        ..cv_params()
-    })
-    .unwrap();
-    let crowd: Vec<[f64; 4]> = (0..10).map(|i| bx(100.0 * f64::from(i), 100.0)).collect();
-    let crowd_scores: Vec<f64> = (0..10).map(|i| 0.5 + 0.05 * f64::from(i)).collect();
-    let flat = |b: &[[f64; 4]]| b.iter().flatten().copied().collect::<Vec<f64>>();
-    for _ in 0..4 {
-        t.update(&flat(&crowd), &crowd_scores, None).unwrap();
-    }
-    let mut boxes = crowd.clone();
-    boxes.push(bx(50.0, 400.0));
-    boxes.push(bx(250.0, 400.0));
-    let mut scores = crowd_scores.clone();
-    scores.extend([0.55, 0.95]);
-    let out = t.update(&flat(&boxes), &scores, None).unwrap();
-    let reported = |j: usize| out.iter().any(|o| o.det_index == Some(j));
-    (reported(10), reported(11))
-}
-
-#[test]
-fn range_scale_reads_thresholds_from_the_detectors_floor() {
-    // Range: 0.55 sits at 0.1 of the range seen (0.5-1), under det_threshold 0.3: only the
-    // 0.95 person starts a track. As given: both do (0.55 >= 0.3).
-    assert_eq!(
-        births_from_a_floored_detector(ScoreScale::Range),
-        (false, true)
-    );
-    assert_eq!(
-        births_from_a_floored_detector(ScoreScale::Absolute),
-        (true, true)
-    );
-    assert_eq!(TrackerParams::pure().score_scale, ScoreScale::Absolute);
 }
 
 /// Walkers at 4 px/frame, one per row, each seen for 6 frames; `missed(k)` frames of each are

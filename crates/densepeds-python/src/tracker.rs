@@ -133,7 +133,8 @@ fn pure_params(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
 }
 
 /// The parameter table as Python data: one dict per parameter with its name, Python type
-/// name, default value, range (as text) and one-line doc, in the table's order.
+/// name, default value, range (as text), one-line doc and group (`core` or its block), in the
+/// table's order.
 fn param_table(py: Python<'_>) -> PyResult<Bound<'_, PyTuple>> {
     let defaults = TrackerParams::default();
     let rows = assoc::PARAMS
@@ -148,6 +149,7 @@ fn param_table(py: Python<'_>) -> PyResult<Bound<'_, PyTuple>> {
             )?;
             d.set_item("range", s.range.describe())?;
             d.set_item("doc", s.doc)?;
+            d.set_item("group", assoc::params::group(s.name))?;
             Ok(d)
         })
         .collect::<PyResult<Vec<_>>>()?;
