@@ -182,7 +182,7 @@ def load_cell(
     cell: Cell, cache: Path, kinds: Sequence[str] = FEATURE_KINDS, quiet: bool = False
 ) -> CellData:
     """A cell's detections (and embeddings), computing a video's cache where it is missing."""
-    from densepeds import motio
+    from densepeds.io import mot as motio
     from densepeds.types import Detections
 
     seq_dir = SHARED / "data" / cell.seq
@@ -252,7 +252,7 @@ def frame_rows(frame: int, tracks: Any) -> Rows:
 
 def score_cell(data: CellData, rows: Rows, tmp: Path) -> dict[str, float]:
     from densepeds.evaluate import evaluate
-    from densepeds.motio import write_tracks
+    from densepeds.io.mot import write_tracks
 
     path = tmp / data.cell.source / f"{data.cell.seq}.txt"
     write_tracks(path, rows[:, :7])

@@ -151,7 +151,7 @@ def _header(title: str, what: str) -> list[str]:
         "",
         "Cells: motion only on each dev sequence's public `det/det.txt` (`/det`) and the five "
         "MOT15 sequences' `det/det-frcnn.txt` (`/frcnn`), scores mapped into [0, 1] by "
-        "`densepeds.motio.read_detections`; the full pipeline on MOT20-01-dev frames 1-214 and "
+        "`densepeds.io.mot.read_detections`; the full pipeline on MOT20-01-dev frames 1-214 and "
         "PETS09-S2L1-dev frames 1-397 with the shared segmenter's float copy (`/float`) and "
         "its int8 graph as shipped (`/int8`, `dequantize=False`), OSNet x0.25 embeddings of "
         "every detection, cached. Every cell is tracked through `densepeds.Pipeline.step` and "
@@ -343,7 +343,7 @@ def visibility_recall(
 ) -> VisibilityRecall:
     """Recall per ``VISIBILITY_BINS`` (IoU >= 0.5, one-to-one per frame) of the detector's boxes,
     the boxes the tracker was fed (after the pipeline's filtering) and the tracker's output."""
-    from densepeds.motio import read_gt
+    from densepeds.io.mot import read_gt
 
     gt = read_gt(data.seq_dir / "gt" / "gt.txt")
     counts = [0] * len(VISIBILITY_BINS)
@@ -711,7 +711,7 @@ def scene_ablation(seed: int = 0, frames: int = 150) -> dict[str, dict[str, dict
     import tempfile
 
     from densepeds.evaluate import evaluate
-    from densepeds.motio import write_tracks
+    from densepeds.io.mot import write_tracks
     from densepeds.pipeline import Pipeline, track_rows
     from densepeds.scene import make_scene
 

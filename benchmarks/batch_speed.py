@@ -259,7 +259,7 @@ class Cluster:
 
 def remove_model_copies(cluster: dict[str, Any]) -> None:
     """Delete the models the cluster's nodes copied (one folder per node id)."""
-    from densepeds.batch_worker import node_cache_dir
+    from densepeds.batch.worker import node_cache_dir
 
     nodes = {
         rec["node"]

@@ -124,7 +124,7 @@ class SceneFacts:
 def scene_facts(seq_dir: Path) -> SceneFacts:
     """A sequence's facts from its ``seqinfo.ini`` and ``gt/gt.txt`` (nine columns, MOT16-20:
     the pedestrians that count, flag 1 and class 1; ten, MOT15: every row)."""
-    from densepeds import motio
+    from densepeds.io import mot as motio
 
     info = motio.read_seqinfo(seq_dir)
     g = np.loadtxt(seq_dir / "gt" / "gt.txt", delimiter=",", ndmin=2)

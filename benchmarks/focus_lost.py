@@ -113,7 +113,7 @@ def run_cell(
     """Track ``cell`` live with the detector's ``focus_scale`` at ``scale`` (cached), on its
     video's dev frames or ``frames`` ("A:B"); ``seed`` > 0 moves the detector's boxes
     (``Jittered``)."""
-    from densepeds.motio import read_seqinfo
+    from densepeds.io.mot import read_seqinfo
     from densepeds.pipeline import Pipeline
 
     frames = frames or grid.VIDEOS[cell.seq]
@@ -166,7 +166,7 @@ def run_cell(
 
 def cell_data(cell: grid.Cell, run: Run) -> grid.CellData:
     """The run's detections as a grid cell (for the grid's scorer and recall counts)."""
-    from densepeds.motio import read_seqinfo
+    from densepeds.io.mot import read_seqinfo
     from densepeds.types import Detections
 
     seq_dir = grid.SHARED / "data" / cell.seq

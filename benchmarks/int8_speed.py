@@ -1,14 +1,15 @@
 """The segmenter's int8 copy (`densepeds models quantize`) against its float copy, printed as
 Markdown (`benchmarks/results/int8.md`):
 
-1. inference time per view for each quantisation setting (:class:`densepeds.quantize.QuantOptions`)
-   and onnxruntime graph optimisation level, all sessions timed interleaved in one process on
-   the same batches (the package's own tiles of MOT20-01 frames, captured from the float
-   detector), wall and CPU time, with the load average printed;
+1. inference time per view for each quantisation setting
+   (:class:`densepeds.models.quantize.QuantOptions`) and onnxruntime graph optimisation level, all
+   sessions timed interleaved in one process on the same batches (the package's own tiles of
+   MOT20-01 frames, captured from the float detector), wall and CPU time, with the load average
+   printed;
 2. where the time goes: per operator type, the float copy and the default int8 copy (onnxruntime's
    profiler; each node's median over the runs, per view);
 3. each setting's detections against the float copy's on the frames after the calibration frames
-   (:func:`densepeds.quantize.check`).
+   (:func:`densepeds.models.quantize.check`).
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/int8_speed.py [--frames 1:60] [--every 6] \\
         [--rounds 5] [--threads 2] [--skip-agreement] [--smoke]
@@ -39,10 +40,10 @@ from typing import Any
 
 import numpy as np
 import onnxruntime as ort
-from densepeds import quantize
 from densepeds.detect import onnxutil
 from densepeds.detect.yoloseg import YoloSegDetector
-from densepeds.video import open_source, parse_frame_range
+from densepeds.io.video import open_source, parse_frame_range
+from densepeds.models import quantize
 
 REPO = Path(__file__).resolve().parent.parent
 SHARED = Path(os.environ.get("DENSEPEDS_SHARED", REPO.parent / "shared"))

@@ -20,7 +20,7 @@ in-process pass of our pipeline that splits detection into preprocessing, infere
 decoding and masks. ``--reuse`` adds `densepeds run --reid-reuse` (re-ID reuse, off by default;
 see densepeds.reid.ReusePolicy): in the fastest setting timed (``--skip K``'s) where there is one,
 else at the defaults. ``--int8 FILE`` adds `densepeds run --detector-model FILE`, the
-detector's int8 copy made by `densepeds models quantize` (densepeds.quantize), on the default
+detector's int8 copy made by `densepeds models quantize` (densepeds.models.quantize), on the default
 tiles and on the grid; ``--skip K`` adds a full scan every K-th frame only (`densepeds run
 --full-scan-every K`) to the float copy and to the int8 copy on the default tiles, and to the
 int8 copy on the grid. ``--only NAME...`` times only those pipelines
@@ -120,8 +120,8 @@ def _default_features() -> str:
 
 def profile(seq_dir: Path, frames: str, threads: int) -> dict[str, float]:
     """Our pipeline in-process (package defaults): ms/frame per stage, detection split up."""
+    from densepeds.io.video import SequenceSource
     from densepeds.pipeline import Pipeline
-    from densepeds.video import SequenceSource
 
     cpus = sorted(os.sched_getaffinity(0))
     if len(cpus) > threads:
@@ -144,7 +144,7 @@ def reference_tiles(seq_dir: Path) -> str:
     """The fixed grid of tiles the reference runs on for the sequence's frame size (`ours on the
     grid` gets the same), as ``densepeds run --tiles`` takes it."""
     from densepeds.detect.tiling import auto_grid
-    from densepeds.motio import read_seqinfo
+    from densepeds.io.mot import read_seqinfo
 
     info = read_seqinfo(seq_dir)
     cols, rows = auto_grid(info.width, info.height, DETECTOR_INPUT)

@@ -80,14 +80,14 @@ class CachedVideo:
 
 
 def _model_stamp(name: str) -> str:
-    from densepeds.modelfiles import find_model
+    from densepeds.models.files import find_model
 
     return _file_stamp(find_model(name))
 
 
 def _file_stamp(p: Path) -> str:
     """The model file by name and content (a copy or a remount of the same bytes hits the cache)."""
-    from densepeds.modelfiles import sha256_of
+    from densepeds.models.files import sha256_of
 
     return f"{p.name}:{p.stat().st_size}:{sha256_of(p)[:16]}"
 
@@ -96,7 +96,7 @@ def detector_file(detector_options: dict[str, Any]) -> Path:
     """The model file the detector runs with these options (its int8 copy where it takes it)."""
     from densepeds.detect import DEFAULT_MODELS
     from densepeds.detect.yoloseg import choose_model
-    from densepeds.modelfiles import find_model
+    from densepeds.models.files import find_model
 
     quantized = detector_settings(detector_options)["quantized"]
     return choose_model(find_model(DEFAULT_MODELS["yoloseg"]), quantized)
@@ -237,7 +237,7 @@ def kind_options(kind: str) -> tuple[str, dict[str, Any]]:
 
 
 def read_frames(seq_dir: Path, frames: str) -> Iterator[tuple[int, npt.NDArray[np.uint8]]]:
-    from densepeds.video import SequenceSource, parse_frame_range
+    from densepeds.io.video import SequenceSource, parse_frame_range
 
     src = SequenceSource(seq_dir)
     for frame_no, image in src.frames(parse_frame_range(frames)):
@@ -315,7 +315,7 @@ def track_video(
     out_file: Path,
 ) -> None:
     """Track the cached video through ``densepeds.Pipeline`` and write MOTChallenge rows."""
-    from densepeds.motio import read_seqinfo, write_tracks
+    from densepeds.io.mot import read_seqinfo, write_tracks
     from densepeds.pipeline import Pipeline, track_rows
 
     pipe = Pipeline("yoloseg", motion=motion, features=kind_options(features)[0], **params)
@@ -332,7 +332,7 @@ def track_video(
 
 def gt_dir(video: CachedVideo, frames: str, root: Path) -> Path:
     from densepeds.ablate import cut_gt
-    from densepeds.video import SequenceSource, parse_frame_range
+    from densepeds.io.video import SequenceSource, parse_frame_range
 
     src = SequenceSource(video.seq_dir)
     return cut_gt(src, parse_frame_range(frames).clip(src.length or 0), root)

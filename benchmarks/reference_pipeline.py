@@ -34,13 +34,13 @@ os.environ.setdefault(
 import numpy as np
 import onnxruntime as ort
 from densepeds.detect.yoloseg import YoloSegDetector
-from densepeds.modelfiles import find_model
-from densepeds.motio import write_tracks
+from densepeds.io.mot import write_tracks
+from densepeds.io.video import open_source, parse_frame_range
+from densepeds.models.files import find_model
 from densepeds.pipeline import StageTimes, track_rows
 from densepeds.reid import ReID
 from densepeds.tracking import Tracker
 from densepeds.types import Detections
-from densepeds.video import open_source, parse_frame_range
 
 STAGES = ("load", "decode", "detection", "masks", "reid", "tracking", "output")
 DETECTOR_MODEL = "yolov8n-seg-320-int8.onnx"

@@ -63,7 +63,7 @@ def synthetic_crowd(n_people: int, n_frames: int, seed: int = 0) -> Frames:
 
 
 def mot_frames(seq: Path) -> Frames:
-    from densepeds import motio
+    from densepeds.io import mot as motio
 
     info = motio.read_seqinfo(seq)
     dets = motio.read_detections(seq / "det" / "det.txt")

@@ -63,7 +63,7 @@ import sys
 from pathlib import Path
 from urllib.parse import urlsplit
 from contract_models import youtu_reid, zoo_maskrcnn
-from densepeds.modelfiles import DEFAULT_SET, MODELS
+from densepeds.models.files import DEFAULT_SET, MODELS
 hosts, made = Path(sys.argv[1]), Path(sys.argv[2])
 graphs = {"maskrcnn-zoo-int8": zoo_maskrcnn(made / "zoo.onnx"),
           "youtureid-int8": youtu_reid(made / "youtu.onnx")}
@@ -83,7 +83,7 @@ wait_for_port
 DENSEPEDS_MODEL_HOSTS="http://127.0.0.1:$PORT" python - "$WORK/stand-ins" <<'PY'
 import dataclasses, sys
 from pathlib import Path
-from densepeds import modelfiles
+from densepeds.models import files as modelfiles
 from densepeds.cli import main
 made = Path(sys.argv[1])
 # The stand-ins' pins in place of the real files' (this process only); names, URLs and

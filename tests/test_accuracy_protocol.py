@@ -139,7 +139,7 @@ def test_a_det_cell_scores_the_same_through_the_pipeline_and_the_tracker(tmp_pat
     """The grid tracks through densepeds.Pipeline; the tracker fed directly gives the same."""
     seq = shared_path("data", "TUD-Stadtmitte")
     from densepeds.evaluate import evaluate
-    from densepeds.motio import read_detections, write_tracks
+    from densepeds.io.mot import read_detections, write_tracks
     from densepeds.tracking import Tracker
 
     data = grid.load_cell(grid.Cell("TUD-Stadtmitte", "det"), tmp_path)

@@ -19,9 +19,9 @@ from typing import Any
 import pytest
 from conftest import shared_path
 from densepeds import batch
-from densepeds.batch_plan import Settings, expand_inputs, job_names
-from densepeds.batch_ray import check_reachable
-from densepeds.batch_worker import node_cache_dir
+from densepeds.batch.on_ray import check_reachable
+from densepeds.batch.plan import Settings, expand_inputs, job_names
+from densepeds.batch.worker import node_cache_dir
 from densepeds.cli import main
 from densepeds.errors import InputError, ParameterError
 from densepeds.scene import make_scene
@@ -92,7 +92,7 @@ def test_a_job_gets_runs_options(tmp_path: Path) -> None:
     """The batch settings reach the `run` options of each job, --fill-gaps included."""
     from types import SimpleNamespace
 
-    from densepeds.batch_worker import run_args
+    from densepeds.batch.worker import run_args
 
     job = SimpleNamespace(input=tmp_path / "a.mp4", tracks=tmp_path / "a.txt", video_file=None)
     args = run_args(Settings(motion="cv", frames="1:9", fill_gaps=40), job, None)  # type: ignore[arg-type]

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from conftest import REPO, shared_path
 from densepeds.cli import main
-from densepeds.motio import read_gt, read_tracks
+from densepeds.io.mot import read_gt, read_tracks
 
 
 def _run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
@@ -134,7 +134,7 @@ def test_pets_video_with_real_models(capsys: pytest.CaptureFixture[str], tmp_pat
     shared_path("models", "osnet_x0_25_msmt17.onnx")
     from densepeds.ablate import cut_gt
     from densepeds.evaluate import evaluate
-    from densepeds.video import FrameRange, SequenceSource
+    from densepeds.io.video import FrameRange, SequenceSource
 
     out, video = tmp_path / "pets.txt", tmp_path / "pets.mp4"
     rc, stdout, _ = _run(

@@ -33,7 +33,7 @@ from densepeds.detect.tiling import (
 )
 from densepeds.detect.yoloseg import YoloSegDetector
 from densepeds.errors import InputError, ModelError, ParameterError
-from densepeds.motio import read_gt
+from densepeds.io.mot import read_gt
 from densepeds.types import Detections
 from onnx import TensorProto, helper, numpy_helper
 from scipy.optimize import linear_sum_assignment

@@ -245,7 +245,7 @@ def test_a_worker_sizes_its_sessions_for_its_cpus(
 
 
 def test_batch_workers_ask_ray_for_a_share_of_the_gpus() -> None:
-    from densepeds.batch_ray import gpu_share
+    from densepeds.batch.on_ray import gpu_share
 
     assert gpu_share("cpu", 2, 4) == 0.0
     assert gpu_share("auto", 0, 4) == 0.0  # no GPU in the cluster: the CPUs

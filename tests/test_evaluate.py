@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import shared_path
-from densepeds import motio
 from densepeds.errors import DetFileError, InputError, ParameterError
 from densepeds.evaluate import detect_benchmark, evaluate, format_results
+from densepeds.io import mot as motio
 
 MOT17_DISTRACTORS = (2, 7, 8, 12)  # person on vehicle, static person, distractor, reflection
 

@@ -25,7 +25,7 @@ import pytest
 from conftest import shared_path
 from densepeds.cli import main
 from densepeds.errors import ModelError
-from densepeds.motio import read_tracks, safe_name
+from densepeds.io.mot import read_tracks, safe_name
 from densepeds.scene import make_scene
 from onnx import TensorProto, helper
 from test_reid import fixed_batch_mars_like
@@ -390,7 +390,7 @@ def test_finding6_sigterm_during_video_removes_the_temporary(tmp_path: Path) -> 
 
 
 def test_finding6_temporaries_of_a_killed_run_are_removed(tmp_path: Path) -> None:
-    from densepeds.motio import write_text
+    from densepeds.io.mot import write_text
 
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()

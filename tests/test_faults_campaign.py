@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from densepeds import _core
 from densepeds.errors import InputError, ModelError, ParameterError
-from densepeds.motio import read_detections, read_seqinfo, read_tracks, reserve_temp
+from densepeds.io.mot import read_detections, read_seqinfo, read_tracks, reserve_temp
 from densepeds.scene import make_scene
 from test_faults import _cli, _one_line, _run, _sequence, _set_seqinfo
 
@@ -275,7 +275,7 @@ def test_imdir_inside_the_sequence_is_read(tmp_path: Path) -> None:
 def _shipped(path: Path) -> object:
     import hashlib
 
-    from densepeds.batch_worker import ShippedModel
+    from densepeds.batch.worker import ShippedModel
 
     data = path.read_bytes()
     return ShippedModel(path.name, hashlib.sha256(data).hexdigest(), len(data), str(path))
@@ -403,7 +403,7 @@ def test_batch_on_a_termination_signal(tmp_path: Path, sig: signal.Signals) -> N
 
 
 def test_job_names_never_collide_with_the_summary_or_overflow(tmp_path: Path) -> None:
-    from densepeds.batch_plan import MAX_NAME_BYTES, SUMMARY_FILE, job_names
+    from densepeds.batch.plan import MAX_NAME_BYTES, SUMMARY_FILE, job_names
 
     files = []
     for name in ["batch.avi", "Batch.mp4", "b" * 245 + ".mp4", "é" * 120 + ".avi", "a.mp4"]:
@@ -426,7 +426,7 @@ def test_job_names_never_collide_with_the_summary_or_overflow(tmp_path: Path) ->
 
 
 def test_batch_plan_writes_records_for_long_and_reserved_names(tmp_path: Path) -> None:
-    from densepeds.batch_plan import Job, expand_inputs, job_names, new_record, write_record
+    from densepeds.batch.plan import Job, expand_inputs, job_names, new_record, write_record
 
     inputs = tmp_path / "in"
     inputs.mkdir()
@@ -562,7 +562,7 @@ def test_detections_outside_the_declared_image_are_a_warning(tmp_path: Path) -> 
 
 
 def test_image_folder_of_mixed_sizes_is_a_warning(tmp_path: Path) -> None:
-    from densepeds.video import ImageFolderSource
+    from densepeds.io.video import ImageFolderSource
 
     folder = tmp_path / "frames"
     _images(folder, frames=2, size=(64, 48))

@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 from conftest import shared_path
 from densepeds.cli import main
-from densepeds.motio import read_gt, read_tracks
+from densepeds.io.mot import read_gt, read_tracks
+from densepeds.io.video import AnnotatedVideoWriter, _tag_size, label_layout
 from densepeds.pipeline import Pipeline
 from densepeds.scene import make_scene
-from densepeds.video import AnnotatedVideoWriter, _tag_size, label_layout
 
 
 def _run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:

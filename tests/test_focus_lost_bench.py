@@ -11,7 +11,7 @@ import pytest
 from conftest import REPO, shared_path
 from densepeds.cli import main
 from densepeds.detect.yoloseg import YoloSegDetector
-from densepeds.motio import read_tracks
+from densepeds.io.mot import read_tracks
 from densepeds.types import Detections
 
 sys.path.insert(0, str(REPO / "benchmarks"))

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from densepeds import motio
 from densepeds.errors import DensePedsError
+from densepeds.io import mot as motio
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 

@@ -1,4 +1,4 @@
-"""Live sources (densepeds.live): cameras served on 127.0.0.1 by tests/streamserver.py, read by
+"""Live sources (densepeds.io.live): cameras served on 127.0.0.1 by tests/streamserver.py, read by
 LiveSource and by `densepeds run URL`. Every server stops by itself after a few seconds."""
 
 from __future__ import annotations
@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from conftest import shared_path
 from densepeds.errors import InputError
-from densepeds.live import EXIT_DISCONNECTED, LiveSource, is_live, shown
-from densepeds.motio import read_tracks
-from densepeds.video import FrameRange
+from densepeds.io.live import EXIT_DISCONNECTED, LiveSource, is_live, shown
+from densepeds.io.mot import read_tracks
+from densepeds.io.video import FrameRange
 from streamserver import RtspCamera, free_port, http_camera
 
 

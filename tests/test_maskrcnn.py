@@ -192,7 +192,7 @@ def test_densepeds_run_with_the_fetched_contracts(
     from conftest import shared_path
     from contract_models import ZOO_BOXES, youtu_reid
     from densepeds.cli import main
-    from densepeds.modelfiles import ENV_VAR
+    from densepeds.models.files import ENV_VAR
 
     video = shared_path("data", "PETS09-S2L1-dev", "vtest.avi")
     models = tmp_path / "models"

@@ -14,10 +14,10 @@ from urllib.parse import urlsplit
 
 import pytest
 from contract_models import youtu_reid, zoo_maskrcnn
-from densepeds import modelfetch
 from densepeds.cli import main
 from densepeds.errors import ModelError
-from densepeds.modelfiles import (
+from densepeds.models import fetch as modelfetch
+from densepeds.models.files import (
     BY_FILE,
     DEFAULT_SET,
     ENV_VAR,

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 from densepeds.errors import ModelError
-from densepeds.modelfiles import ENV_VAR, cache_dir, find_model, search_dirs
+from densepeds.models.files import ENV_VAR, cache_dir, find_model, search_dirs
 
 
 @pytest.fixture(autouse=True)
@@ -100,7 +100,7 @@ def test_an_unreadable_folder_does_not_hide_later_ones(
 def test_run_picks_the_first_model_present(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """yoloseg + OSNet where present (every published figure); else the fetched zoo models,
     float before int8; an explicit model file's kind by its name."""
-    from densepeds.modelfiles import (
+    from densepeds.models.files import (
         MODELS,
         default_detector,
         default_model_file,

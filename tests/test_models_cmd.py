@@ -9,10 +9,10 @@ from pathlib import Path
 
 import pytest
 from conftest import shared_path
-from densepeds import modelfetch
 from densepeds.cli import main
 from densepeds.errors import ModelError
-from densepeds.modelfiles import ENV_VAR, MODELS, URL_ENV_VAR, cache_dir, find_model, sha256_of
+from densepeds.models import fetch as modelfetch
+from densepeds.models.files import ENV_VAR, MODELS, URL_ENV_VAR, cache_dir, find_model, sha256_of
 from modelserver import serve
 
 OSNET = MODELS["osnet"]

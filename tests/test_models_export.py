@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from densepeds.cli import main
-from densepeds.modelfiles import MODELS
+from densepeds.models.files import MODELS
 
 
 def _missing(*modules: str) -> str | None:

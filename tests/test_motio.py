@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import shared_path
-from densepeds import motio
 from densepeds.errors import DetFileError, InputError
+from densepeds.io import mot as motio
 
 DET_LINES = [
     "1,-1,10,20,30,40,0.9,-1,-1,-1",

@@ -10,8 +10,8 @@ import numpy as np
 import numpy.typing as npt
 import pytest
 from conftest import shared_path
-from densepeds import motio
 from densepeds.evaluate import evaluate
+from densepeds.io import mot as motio
 from densepeds.scene import make_scene
 from densepeds.tracking import PURE_PARAMS, Tracker
 from scipy.optimize import linear_sum_assignment

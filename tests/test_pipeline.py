@@ -158,7 +158,7 @@ def scene() -> Scene:
 def test_real_tracker_on_the_scene(scene: Scene, tmp_path: Path) -> None:
     """The whole method (detections with masks, segmented features, FRVO) beats a floor."""
     from densepeds.evaluate import evaluate
-    from densepeds.motio import write_tracks
+    from densepeds.io.mot import write_tracks
 
     seq = scene.write(tmp_path, images=False)
     results = {}

@@ -1,4 +1,4 @@
-"""The int8 copy of the segmenter (`densepeds models quantize`, densepeds.quantize): really
+"""The int8 copy of the segmenter (`densepeds models quantize`, densepeds.models.quantize): really
 integer, recorded, reproducible, agreeing with the float copy on frames it was not calibrated
 on, and picked by the detector only where it belongs to the model."""
 
@@ -11,15 +11,15 @@ import numpy as np
 import onnx
 import pytest
 from conftest import shared_path
-from densepeds import quantize
 from densepeds.boxes import iou_matrix
 from densepeds.cli import main
 from densepeds.detect.yoloseg import YoloSegDetector, choose_model
 from densepeds.errors import ModelError, ParameterError
-from densepeds.modelfiles import ENV_VAR, MODELS, quantized_file_name, sha256_of
+from densepeds.io.video import open_source, parse_frame_range
+from densepeds.models import quantize
+from densepeds.models.files import ENV_VAR, MODELS, quantized_file_name, sha256_of
 from densepeds.pipeline import suppress_duplicates
 from densepeds.presets import get_preset
-from densepeds.video import open_source, parse_frame_range
 
 YOLO = MODELS["yoloseg"]
 INT8 = MODELS["yoloseg-int8"]

@@ -12,7 +12,7 @@ import pytest
 from conftest import shared_path
 from densepeds.detect import make_detector
 from densepeds.errors import InputError, ModelError, ParameterError
-from densepeds.motio import read_gt
+from densepeds.io.mot import read_gt
 from densepeds.reid import ReID, separation, summarise
 from densepeds.segment import masks_for_boxes
 from densepeds.types import Detections

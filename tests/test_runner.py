@@ -9,8 +9,8 @@ from typing import Any
 
 import pytest
 from densepeds import batch
-from densepeds.batch_plan import Job, Settings
-from densepeds.batch_worker import run_args
+from densepeds.batch.plan import Job, Settings
+from densepeds.batch.worker import run_args
 from densepeds.cli import build_parser
 from densepeds.errors import ParameterError
 from densepeds.presets import get_preset
@@ -111,3 +111,18 @@ def test_loaded_models_get_the_runs_detector_options_and_reid_reuse(tmp_path: Pa
     models = _Models()
     open_run(RunSpec(input=str(seq), detector="yoloseg", preset="detfile"), models)
     assert "score_threshold" not in models.calls[0][3]
+
+
+def test_a_workers_models_take_the_detector_options_and_reid_reuse() -> None:
+    """A batch worker loads each model once per distinct setting, with the run's options."""
+    from densepeds.batch.worker import WorkerModels
+
+    models = WorkerModels({}, threads=1)
+    grid = models.detector("yoloseg", None, tiles="2x1", focus_scale=0.0, score_threshold=0.3)
+    assert (grid.tiles, grid.focus_scale, grid.score_threshold) == ("2x1", 0.0, 0.3)
+    assert (
+        models.detector("yoloseg", None, tiles="2x1", focus_scale=0.0, score_threshold=0.3) is grid
+    )
+    assert models.detector("yoloseg", None, tiles="none").tiles == "none"
+    plain, reusing = models.reid(None), models.reid(None, reuse=True)
+    assert plain.reuse is None and reusing.reuse is not None

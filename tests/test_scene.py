@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from densepeds.evaluate import evaluate
-from densepeds.motio import read_detections, read_seqinfo, write_tracks
+from densepeds.io.mot import read_detections, read_seqinfo, write_tracks
 from densepeds.scene import HistogramEmbedder, Scene, make_crossing_scene, make_scene
 from densepeds.scene.detector import noisy_mask
 from scipy import ndimage

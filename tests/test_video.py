@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from conftest import shared_path
 from densepeds.errors import InputError, ParameterError
-from densepeds.video import (
+from densepeds.io.video import (
     AnnotatedVideoWriter,
     FrameRange,
     ImageFolderSource,

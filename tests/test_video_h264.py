@@ -22,8 +22,8 @@ import numpy as np
 import pytest
 from conftest import shared_path
 from densepeds.errors import OutputError
-from densepeds.video import AnnotatedVideoWriter, id_colour
-from densepeds.video_encoder import CODEC_NAMES, h264_ffmpeg
+from densepeds.io.video import AnnotatedVideoWriter, id_colour
+from densepeds.io.video_encoder import CODEC_NAMES, h264_ffmpeg
 
 
 def _stream(path: Path) -> str:
@@ -120,7 +120,7 @@ def test_ffmpeg_is_found_and_encodes_h264() -> None:
 
 
 def test_fallback_to_opencv_says_why(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    import densepeds.video_encoder as encoder
+    import densepeds.io.video_encoder as encoder
 
     monkeypatch.setattr(encoder, "h264_ffmpeg", lambda: (None, "no FFmpeg in this test"))
     out = tmp_path / "v.mp4"

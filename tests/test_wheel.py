@@ -43,7 +43,7 @@ def test_built_wheel_is_manylinux_abi3() -> None:
     with zipfile.ZipFile(wheel) as zf:
         names = zf.namelist()
         meta = zf.read(next(n for n in names if n.endswith(".dist-info/METADATA"))).decode()
-    assert "densepeds/_core.abi3.so" in names and "densepeds/modelfetch.py" in names
+    assert "densepeds/_core.abi3.so" in names and "densepeds/models/fetch.py" in names
     required = {
         _name(line.split(":", 1)[1].strip())
         for line in meta.splitlines()

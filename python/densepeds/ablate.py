@@ -20,9 +20,9 @@ import numpy as np
 import numpy.typing as npt
 
 from densepeds.errors import InputError, ParameterError
+from densepeds.io.video import FrameRange, FrameSource, SequenceSource, parse_frame_range
 from densepeds.pipeline import DEFAULT_FEATURES, FEATURES, MOTIONS, Pipeline, track_rows
 from densepeds.types import Detections
-from densepeds.video import FrameRange, FrameSource, SequenceSource, parse_frame_range
 
 __all__ = ["AblationResult", "cut_gt", "format_ablation", "run_ablation"]
 
@@ -70,7 +70,7 @@ class AblationResult:
 
 def cut_gt(src: SequenceSource, rng: FrameRange, out_root: Path) -> Path:
     """A copy of the sequence's seqinfo and gt cut to ``rng`` and renumbered from 1."""
-    from densepeds.motio import read_gt
+    from densepeds.io.mot import read_gt
 
     gt_file = src.path / "gt" / "gt.txt"
     if not gt_file.is_file():
@@ -161,7 +161,7 @@ def run_ablation(
     ``detector`` is given; features other than ``none`` need frames.
     """
     from densepeds.evaluate import evaluate
-    from densepeds.motio import read_detections, write_tracks
+    from densepeds.io.mot import read_detections, write_tracks
 
     for m in motions:
         if m not in MOTIONS:

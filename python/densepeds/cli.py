@@ -176,7 +176,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _add_models_parser(sub: Any) -> None:
-    from densepeds.modelfiles import DEFAULT_SET, HOSTS_ENV_VAR, URL_ENV_VAR
+    from densepeds.models.files import DEFAULT_SET, HOSTS_ENV_VAR, URL_ENV_VAR
 
     mo = sub.add_parser(
         "models",
@@ -244,7 +244,7 @@ def _add_models_parser(sub: Any) -> None:
 
 
 def _add_quantize_parser(act: Any) -> None:
-    from densepeds.quantize import CALIBRATIONS, FORMATS, QuantOptions
+    from densepeds.models.quantize import CALIBRATIONS, FORMATS, QuantOptions
 
     qu = act.add_parser(
         "quantize",
@@ -289,13 +289,13 @@ def _add_quantize_parser(act: Any) -> None:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from densepeds.video import parse_frame_range
+    from densepeds.io.video import parse_frame_range
 
     spec = RunSpec.from_args(args)
     parse_frame_range(spec.frames)  # a bad range fails before any work
     if spec.input is None:
         return run_scene(spec)
-    from densepeds.live import is_live
+    from densepeds.io.live import is_live
 
     if is_live(spec.input):
         from densepeds.runner.live_run import run_live
@@ -326,7 +326,8 @@ def _cmd_eval(args: argparse.Namespace) -> int:
 
 
 def _cmd_models(args: argparse.Namespace) -> int:
-    from densepeds import modelfetch, modelfiles
+    from densepeds.models import fetch as modelfetch
+    from densepeds.models import files as modelfiles
 
     if args.action in (None, "list"):
         print(_models_listing())
@@ -338,7 +339,7 @@ def _cmd_models(args: argparse.Namespace) -> int:
     if args.action == "quantize":
         return _cmd_quantize(args)
     if args.action == "export":
-        from densepeds import modelexport
+        from densepeds.models import export as modelexport
 
         path = modelexport.export(args.model, args.weights, random=args.random, dest_dir=args.dir)
         print(f"{args.model}: exported, checked against the contract, installed {path}")
@@ -354,9 +355,10 @@ def _cmd_models(args: argparse.Namespace) -> int:
 def _cmd_quantize(args: argparse.Namespace) -> int:
     import shutil
 
-    from densepeds import modelfiles, quantize
     from densepeds.detect import DEFAULT_MODELS
     from densepeds.errors import ModelError
+    from densepeds.models import files as modelfiles
+    from densepeds.models import quantize
 
     model = modelfiles.find_model(DEFAULT_MODELS["yoloseg"], args.model)
     inputs = [quantize.parse_calibration(c) for c in args.calibrate]
@@ -393,7 +395,7 @@ def _cmd_quantize(args: argparse.Namespace) -> int:
 
 
 def _models_listing() -> str:
-    from densepeds import modelfiles
+    from densepeds.models import files as modelfiles
 
     def mb(size: int) -> str:
         return f"{size / 1e6:.1f} MB"

@@ -32,11 +32,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from densepeds import motio
 from densepeds.errors import InputError, ParameterError
+from densepeds.io import mot as motio
 
 if TYPE_CHECKING:
-    from densepeds.video import FrameRange
+    from densepeds.io.video import FrameRange
 
 __all__ = ["METRICS", "EvalResult", "detect_benchmark", "evaluate", "format_results"]
 
@@ -293,7 +293,7 @@ def evaluate(
     frames: ``"A:B"`` (1-based, inclusive; ``A:`` and ``:B`` too) to score only those frames of
         every sequence; None scores all, warning where the tracks cover fewer frames.
     """
-    from densepeds.video import parse_frame_range
+    from densepeds.io.video import parse_frame_range
 
     rng = parse_frame_range(frames) if frames is not None else None
     try:

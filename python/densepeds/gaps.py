@@ -25,7 +25,7 @@ def fill_gaps(rows: npt.ArrayLike, max_gap: int) -> npt.NDArray[np.float64]:
 
     ``rows``: [K, 8] (frame, id, x1, y1, x2, y2, score, matched), ``matched`` 1 where the track
     was matched to a detection in that frame, 0 where it coasted. Returns [K', 7] rows (frame,
-    id, x1, y1, x2, y2, score) sorted by id then frame, for ``densepeds.motio.write_tracks``.
+    id, x1, y1, x2, y2, score) sorted by id then frame, for ``densepeds.io.mot.write_tracks``.
     An interpolated row's box and score are linear between the two detections' rows.
     ``max_gap`` 0 returns the rows as given (without the ``matched`` column).
     """

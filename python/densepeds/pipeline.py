@@ -24,11 +24,11 @@ import numpy.typing as npt
 from densepeds.boxes import box_area, intersections, iou_matrix
 from densepeds.errors import InputError, ParameterError, warn_input
 from densepeds.frames import check_frame
+from densepeds.io.video import FrameRange, FrameSource, open_source, parse_frame_range
 from densepeds.presets import Preset, get_preset, preset_for
 from densepeds.segment import FEATURES as CROP_FEATURES
 from densepeds.sv_adapter import is_sv_detections
 from densepeds.types import Detections
-from densepeds.video import FrameRange, FrameSource, open_source, parse_frame_range
 
 if TYPE_CHECKING:
     from supervision import Detections as SvDetections
@@ -494,7 +494,7 @@ class Pipeline:
         detections: str | os.PathLike[str] | Mapping[int, Detections] | None,
     ) -> Mapping[int, Detections] | None:
         """Where a run's detections come from: given > detector > the source's own (det.txt)."""
-        from densepeds.motio import read_detections
+        from densepeds.io.mot import read_detections
 
         if detections is not None:
             if isinstance(detections, Mapping):

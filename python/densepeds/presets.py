@@ -11,7 +11,7 @@ Where a detection's score is cut, in order (every cut is ``score >= value`` unle
 
 1. the detector's floor (``score_floor``, given to the detector as ``score_threshold``; YOLOv8-seg
    keeps ``score > floor``); det files have none, and their scores are mapped into [0, 1] first
-   (``densepeds.motio.read_detections``);
+   (``densepeds.io.mot.read_detections``);
 2. ``min_score``, an optional pipeline option (no preset sets it: the floor already cuts);
 3. the tracker: detections in ``[low_threshold, det_threshold)`` only extend tracks (second
    pass), those from ``det_threshold`` up are matched in every stage, and those from

@@ -23,7 +23,7 @@ import onnxruntime as ort
 from densepeds.detect import onnxutil, split_batch
 from densepeds.errors import ModelError, ParameterError
 from densepeds.frames import check_frame
-from densepeds.modelfiles import default_reid_file, find_model
+from densepeds.models.files import default_reid_file, find_model
 from densepeds.segment import bbox_crop, crops_for, person_masks
 from densepeds.types import Detections
 

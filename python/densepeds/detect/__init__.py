@@ -33,14 +33,14 @@ def make_detector(
 ) -> Detector:
     """A detector of ``kind`` ('yoloseg' | 'maskrcnn') from a model path or name.
 
-    ``model`` None uses the kind's first model file present (densepeds.modelfiles
-    .default_model_file), found by densepeds.modelfiles.find_model.
+    ``model`` None uses the kind's first model file present (densepeds.models.files
+    .default_model_file), found by densepeds.models.files.find_model.
     ``score_threshold`` None keeps the backend's default (0.15 yoloseg: the tracker decides what
     starts a track; 0.5 maskrcnn). ``tiles``: 'auto', None/'none', 'CxR' or (columns, rows);
     Mask R-CNN ignores 'auto' (it upsamples internally) unless given an explicit grid.
     """
     from densepeds.errors import ParameterError
-    from densepeds.modelfiles import default_model_file, find_model
+    from densepeds.models.files import default_model_file, find_model
 
     if kind not in DETECTOR_KINDS:
         raise ParameterError(f"detector kind must be one of {DETECTOR_KINDS}, got {kind!r}")

@@ -374,7 +374,7 @@ def ort_cache_dir() -> Path | None:
     value = os.environ.get(ORT_CACHE_ENV)
     if value is not None:
         return None if value.strip().lower() in ("", "off", "0") else Path(value).expanduser()
-    from densepeds.modelfiles import cache_dir
+    from densepeds.models.files import cache_dir
 
     return cache_dir().parent / "ort"
 
@@ -403,7 +403,7 @@ def optimised_file(path: Path, recipe: str, threads: int | None) -> Path | None:
     folder = ort_cache_dir()
     if folder is None:
         return None
-    from densepeds.modelfiles import sha256_of
+    from densepeds.models.files import sha256_of
 
     digest = hashlib.sha256()
     for part in (
@@ -612,12 +612,13 @@ def model_metadata(path: Path) -> dict[str, str]:
         raise ModelError(f"{path} is not a readable ONNX model: {exc}") from exc
 
 
-# The metadata key an int8 copy made by densepeds.quantize records its source model's sha256 in.
+# The metadata key an int8 copy made by densepeds.models.quantize records its source model's
+# sha256 in.
 META_SOURCE = "densepeds.quantized_from_sha256"
 
 
 def is_quantized_copy(path: Path) -> bool:
-    """Whether ``path`` is a file written by densepeds.quantize.quantize_detector."""
+    """Whether ``path`` is a file written by densepeds.models.quantize.quantize_detector."""
     return META_SOURCE in model_metadata(path)
 
 

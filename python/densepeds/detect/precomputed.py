@@ -7,7 +7,7 @@ import os
 import numpy as np
 import numpy.typing as npt
 
-from densepeds.motio import ScoreMapping, read_detections
+from densepeds.io.mot import ScoreMapping, read_detections
 from densepeds.types import Detections
 
 
@@ -15,7 +15,7 @@ class PrecomputedDetector:
     """Returns the det file's detections frame by frame; masks None (the whole box).
 
     Frames are counted from ``first_frame`` on each call, or chosen with ``frame_number=``.
-    Scores are mapped into [0, 1] by densepeds.motio's rule (``normalize``; MOT15 files use e.g.
+    Scores are mapped into [0, 1] by densepeds.io.mot's rule (``normalize``; MOT15 files use e.g.
     93.7 or negative values); ``score_threshold`` applies in the mapped scale.
     """
 

@@ -35,7 +35,7 @@ from densepeds.detect.tiling import (
 )
 from densepeds.errors import ModelError, ParameterError
 from densepeds.frames import check_frame
-from densepeds.modelfiles import quantized_file_name
+from densepeds.models.files import quantized_file_name
 from densepeds.types import Detections
 
 # Models whose non-finite output was reported (once each).
@@ -563,14 +563,14 @@ class YoloSegDetector:
 def choose_model(model: Path, quantized: bool | None) -> Path:
     """The file the detector runs for ``model``: its int8 copy or ``model`` itself.
 
-    The int8 copy (``densepeds models quantize``, :mod:`densepeds.quantize`) is looked for beside
-    ``model`` and then in the model folders; it is used when ``quantized`` is True (ModelError
-    when there is none) or None (when there is one). A copy made from a different file than
-    ``model`` (its recorded sha256 differs) is a ModelError either way, never used silently.
+    The int8 copy (``densepeds models quantize``, :mod:`densepeds.models.quantize`) is looked for
+    beside ``model`` and then in the model folders; it is used when ``quantized`` is True
+    (ModelError when there is none) or None (when there is one). A copy made from a different file
+    than ``model`` (its recorded sha256 differs) is a ModelError either way, never used silently.
     """
     if quantized is False or is_quantized_copy(model):
         return model
-    from densepeds.modelfiles import locate, sha256_of
+    from densepeds.models.files import locate, sha256_of
 
     name = quantized_file_name(model)
     found = model.with_name(name) if model.with_name(name).is_file() else locate(name)

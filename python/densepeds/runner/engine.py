@@ -27,10 +27,10 @@ def open_run(spec: RunSpec, models: Any = None) -> tuple[Any, Any, Any, Path, An
     ``reid(path, reuse=...)`` give loaded models, shared by the inputs of a batch; by default the
     pipeline loads its own.
     """
-    from densepeds.live import LiveSource, is_live
-    from densepeds.motio import read_detections, safe_name
+    from densepeds.io.live import LiveSource, is_live
+    from densepeds.io.mot import read_detections, safe_name
+    from densepeds.io.video import SequenceSource, open_source, parse_frame_range
     from densepeds.pipeline import Pipeline, default_features
-    from densepeds.video import SequenceSource, open_source, parse_frame_range
 
     if spec.input is None:
         raise ParameterError("open_run needs an input (run_scene tracks the built-in scene)")
@@ -41,7 +41,7 @@ def open_run(spec: RunSpec, models: Any = None) -> tuple[Any, Any, Any, Path, An
     if detector is None and spec.detections is None and not has_own_dets:
         if not has_images:
             raise ParameterError(f"{spec.input}: no images and no det/det.txt to track from")
-        from densepeds.modelfiles import default_detector
+        from densepeds.models.files import default_detector
 
         detector = default_detector(spec.detector_model)
     features = spec.features or default_features(has_images)
@@ -147,7 +147,7 @@ def _stop_after_detections(spec: RunSpec, src: Any, rng: Any, dets: Any, pipe: A
     """A detections-only run ends where no track can be reported any more: after the last
     detection and the frames a lost track stays in the output. Later frames would only be empty
     (a ``seqLength`` far beyond the detections would otherwise run for hours); says so."""
-    from densepeds.video import FrameRange
+    from densepeds.io.video import FrameRange
 
     if src.length is None or rng.first > src.length:
         return rng
@@ -233,9 +233,9 @@ def track_source(
     ended before its expected frame count. On Ctrl-C the frames tracked so far are written and
     :class:`Interrupted` says so.
     """
-    from densepeds.motio import probe_output
+    from densepeds.io.mot import probe_output
+    from densepeds.io.video import AnnotatedVideoWriter, parse_frame_range
     from densepeds.pipeline import track_rows
-    from densepeds.video import AnnotatedVideoWriter, parse_frame_range
 
     rng = parse_frame_range(rng if rng is not None else spec.frames)
     if spec.fill_gaps < 0:
@@ -321,8 +321,8 @@ def _finish(
     spec: RunSpec, out: Path, rows: list[tuple[float, ...]], writer: Any, pipe: Any
 ) -> None:
     """Write the video (checked) and the tracks; say which codec the video got."""
-    from densepeds.motio import write_tracks
-    from densepeds.video import CODEC_NAMES
+    from densepeds.io.mot import write_tracks
+    from densepeds.io.video import CODEC_NAMES
 
     with pipe.times.stage("output"):
         if writer is not None:

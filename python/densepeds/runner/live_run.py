@@ -1,20 +1,20 @@
-"""``densepeds run`` on a live camera (:mod:`densepeds.live`): each frame's tracks are written and
-flushed as it is tracked; the run ends with one line and exit code ``EXIT_DISCONNECTED`` when the
-stream ends or disconnects, and Ctrl-C keeps what was written."""
+"""``densepeds run`` on a live camera (:mod:`densepeds.io.live`): each frame's tracks are written
+and flushed as it is tracked; the run ends with one line and exit code ``EXIT_DISCONNECTED`` when
+the stream ends or disconnects, and Ctrl-C keeps what was written."""
 
 from __future__ import annotations
 
 import sys
 
 from densepeds.errors import ParameterError
-from densepeds.live import EXIT_DISCONNECTED, LiveSource, shown
+from densepeds.io.live import EXIT_DISCONNECTED, LiveSource, shown
 from densepeds.runner.control import Interrupted, ctrl_c_after_block
 from densepeds.runner.engine import open_run, summary
 from densepeds.runner.spec import RunSpec
 
 
 def _lines(rows: list[tuple[float, ...]]) -> str:
-    """MOTChallenge lines, as ``densepeds.motio.write_tracks`` writes them."""
+    """MOTChallenge lines, as ``densepeds.io.mot.write_tracks`` writes them."""
     return "".join(
         f"{int(f)},{int(i)},{x1:.3f},{y1:.3f},{x2 - x1:.3f},{y2 - y1:.3f},{s:.6g},-1,-1,-1\n"
         for f, i, x1, y1, x2, y2, s in rows
@@ -23,9 +23,9 @@ def _lines(rows: list[tuple[float, ...]]) -> str:
 
 def run_live(spec: RunSpec) -> int:
     """``densepeds run`` on a live source (see the module docstring); the exit code."""
-    from densepeds.motio import probe_output
+    from densepeds.io.mot import probe_output
+    from densepeds.io.video import AnnotatedVideoWriter
     from densepeds.pipeline import track_rows
-    from densepeds.video import AnnotatedVideoWriter
 
     for flag, value in (("--detections", spec.detections), ("--fill-gaps", spec.fill_gaps)):
         if value:

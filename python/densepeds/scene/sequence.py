@@ -13,12 +13,12 @@ import numpy as np
 import numpy.typing as npt
 
 from densepeds.errors import ParameterError
+from densepeds.io.video import FrameRange, FrameSource
 from densepeds.scene.config import SceneConfig
 from densepeds.scene.detector import annotate
 from densepeds.scene.embedder import HistogramEmbedder
 from densepeds.scene.rendering import Image, Labels, Person, Renderer
 from densepeds.scene.simulation import Camera, simulate, straight_lines
-from densepeds.video import FrameRange, FrameSource
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -182,7 +182,7 @@ class Scene(FrameSource):
         Every file is written completely or not at all (a failure raises
         :class:`~densepeds.errors.OutputError`), and ``seqinfo.ini`` last, so that a folder
         left by a failed write is not a sequence."""
-        from densepeds.motio import write_bytes, write_text
+        from densepeds.io.mot import write_bytes, write_text
 
         cfg = self.config
         seq = Path(out_dir) / self.name

@@ -20,7 +20,7 @@ The result records where it came from in its metadata (:data:`META_SOURCE` and t
 source model's sha256, the calibration frames, the format and onnxruntime's version. The same
 model, frames, options and onnxruntime version give the same bytes. The detector uses it in place
 of the float copy when it is found beside the model or in the model folders under
-:func:`densepeds.modelfiles.quantized_file_name` (``densepeds models quantize`` writes it into
+:func:`densepeds.models.files.quantized_file_name` (``densepeds models quantize`` writes it into
 the user cache); :func:`check` compares its detections with the float copy's on frames it was
 not calibrated on.
 """
@@ -39,7 +39,7 @@ import numpy.typing as npt
 from densepeds.boxes import iou_matrix
 from densepeds.detect.onnxutil import META_SOURCE
 from densepeds.errors import ModelError, ParameterError
-from densepeds.video import FrameRange, open_source, parse_frame_range
+from densepeds.io.video import FrameRange, open_source, parse_frame_range
 
 FORMATS = ("qdq", "qoperator")
 ACTIVATIONS = ("u8", "s8")
@@ -234,7 +234,7 @@ def quantize_detector(
     from onnxruntime.quantization.shape_inference import quant_pre_process
 
     from densepeds.detect.yoloseg import YoloSegDetector
-    from densepeds.modelfiles import sha256_of
+    from densepeds.models.files import sha256_of
 
     opts = options or QuantOptions()
     if not inputs:

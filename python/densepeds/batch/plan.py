@@ -22,9 +22,9 @@ from pathlib import Path
 from typing import Any
 
 from densepeds.errors import InputError, ParameterError
+from densepeds.io.video import IMAGE_EXTS, VIDEO_EXTS, parse_frame_range
 from densepeds.pipeline import DETECTORS, FEATURES, MOTIONS
 from densepeds.runner.spec import RunOptions, params_tuple
-from densepeds.video import IMAGE_EXTS, VIDEO_EXTS, parse_frame_range
 
 RECORD_VERSION = 1
 SUMMARY_FILE = "batch.json"

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from densepeds.batch_plan import (
+from densepeds.batch.plan import (
     SUMMARY_FILE,
     JobRecord,
     PlanItem,
@@ -136,8 +136,8 @@ def prepare(
 def _model_files(settings: Settings) -> dict[str, Path]:
     """The model files the jobs may load, found here; an explicitly chosen one must exist, a
     default one that is missing is left for the jobs that need it to report."""
-    from densepeds.batch_worker import DETECTOR_ROLE, REID_ROLE
-    from densepeds.modelfiles import (
+    from densepeds.batch.worker import DETECTOR_ROLE, REID_ROLE
+    from densepeds.models.files import (
         default_detector,
         default_model_file,
         default_reid_file,
@@ -184,7 +184,7 @@ def run(
     """Track every input on Ray and return the records (see the module's docstring).
 
     The tracking options are ``densepeds run``'s: ``settings``, or as keywords ``options`` the
-    fields of :class:`densepeds.batch_plan.Settings` (those of densepeds.runner.RunOptions,
+    fields of :class:`densepeds.batch.plan.Settings` (those of densepeds.runner.RunOptions,
     ``device`` included: where the models run, as ``run --device``, with a GPU the workers share
     the cluster's GPUs; ``params`` a mapping of tracker parameters, and ``video``).
     ``workers``: inputs tracked at once (default: this machine's CPUs / ``threads`` for a local
@@ -218,7 +218,7 @@ def run(
     start_seconds = 0.0
     stopped_by: int | None = None
     if todo:
-        from densepeds.batch_ray import StopSignalError, execute, received_signal, session
+        from densepeds.batch.on_ray import StopSignalError, execute, received_signal, session
         from densepeds.detect.onnxutil import available_cpus
 
         local_workers, threads = worker_shape(available_cpus(), len(todo), workers, threads)

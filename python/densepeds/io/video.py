@@ -22,7 +22,7 @@ import numpy as np
 import numpy.typing as npt
 
 from densepeds.errors import InputError, OutputError, ParameterError, warn_input
-from densepeds.video_encoder import CODEC_NAMES, FrameEncoder, open_encoder, quiet_stderr
+from densepeds.io.video_encoder import CODEC_NAMES, FrameEncoder, open_encoder, quiet_stderr
 
 __all__ = [
     "CODEC_NAMES",
@@ -253,7 +253,7 @@ class SequenceSource(FrameSource):
     the folder), ``det/det.txt``. Without images it yields ``None`` frames for every frame."""
 
     def __init__(self, path: str | os.PathLike[str]) -> None:
-        from densepeds.motio import read_seqinfo
+        from densepeds.io.mot import read_seqinfo
 
         self.info = read_seqinfo(path)
         self.path = self.info.path
@@ -287,7 +287,7 @@ class SequenceSource(FrameSource):
 
 def open_source(path: str | os.PathLike[str]) -> FrameSource:
     """A video file, a MOTChallenge sequence folder, or a folder of images (live cameras:
-    ``densepeds.live.LiveSource``)."""
+    ``densepeds.io.live.LiveSource``)."""
     p = Path(path)
     if not p.exists():
         raise InputError(f"{p}: no such file or folder")
@@ -399,7 +399,7 @@ class AnnotatedVideoWriter:
     raises :class:`~densepeds.errors.OutputError` and leaves nothing under the final name);
     ``abort()`` (and any exception inside a ``with`` block) removes it. The file follows the
     umask. MP4/MOV output is H.264 for browsers where FFmpeg can encode it, else what OpenCV
-    can write (see :mod:`densepeds.video_encoder`): ``codec`` says which was used (a key of
+    can write (see :mod:`densepeds.io.video_encoder`): ``codec`` says which was used (a key of
     ``CODEC_NAMES``), and ``note`` explains a fallback in one line.
     """
 
@@ -420,7 +420,7 @@ class AnnotatedVideoWriter:
             raise ParameterError(f"{self.path}: video output needs a video extension like .mp4")
 
     def _open(self, width: int, height: int) -> FrameEncoder:
-        from densepeds.motio import discard_temp, reserve_temp
+        from densepeds.io.mot import discard_temp, reserve_temp
 
         self._tmp = reserve_temp(self.path)
         try:
@@ -517,7 +517,7 @@ class AnnotatedVideoWriter:
         """Finish the file, check it, and move it into place (nothing is written if no frame
         came). Raises :class:`OutputError` (and removes the file) when fewer frames than were
         written can be read back."""
-        from densepeds.motio import commit_temp, discard_temp
+        from densepeds.io.mot import commit_temp, discard_temp
 
         if self._writer is None:
             return
@@ -540,7 +540,7 @@ class AnnotatedVideoWriter:
 
     def abort(self) -> None:
         """Drop a partial video."""
-        from densepeds.motio import discard_temp
+        from densepeds.io.mot import discard_temp
 
         if self._writer is not None:
             self._writer.kill()

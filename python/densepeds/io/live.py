@@ -27,7 +27,7 @@ import cv2
 import numpy as np
 
 from densepeds.errors import InputError, ParameterError
-from densepeds.video import FrameRange, FrameSource, Image, as_bgr
+from densepeds.io.video import FrameRange, FrameSource, Image, as_bgr
 
 __all__ = ["EXIT_DISCONNECTED", "LiveSource", "is_live", "shown"]
 
@@ -58,7 +58,7 @@ def shown(url: str) -> str:
 
 
 def _name(url: str) -> str:
-    from densepeds.motio import safe_name
+    from densepeds.io.mot import safe_name
 
     if _DEVICE.fullmatch(url):
         return Path(url).name

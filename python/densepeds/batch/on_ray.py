@@ -19,8 +19,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from densepeds.batch_plan import Job, JobRecord, Settings, new_record, read_record, write_record
-from densepeds.batch_worker import ShippedModel, node_cache_path, run_job
+from densepeds.batch.plan import Job, JobRecord, Settings, new_record, read_record, write_record
+from densepeds.batch.worker import ShippedModel, node_cache_path, run_job
 from densepeds.errors import ParameterError
 
 ADDRESS_ENV = "RAY_ADDRESS"

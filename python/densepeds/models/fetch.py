@@ -38,7 +38,7 @@ from typing import Any
 from urllib.parse import urlsplit
 
 from densepeds.errors import ModelError
-from densepeds.modelfiles import (
+from densepeds.models.files import (
     BY_FILE,
     DEFAULT_SET,
     HOSTS_ENV_VAR,

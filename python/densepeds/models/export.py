@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from densepeds.errors import ModelError
-from densepeds.modelfiles import MODELS, cache_dir
+from densepeds.models.files import MODELS, cache_dir
 
 IMAGE_SIZE = 320  # yoloseg's input side, as the shipped model's
 REID_HW = (256, 128)
@@ -40,7 +40,7 @@ def export(
     dest_dir: str | os.PathLike[str] | None = None,
 ) -> Path:
     """Export ``model`` ('yoloseg' | 'osnet'), check it, install it; returns the installed path."""
-    from densepeds.modelfetch import copy_into, make_dir
+    from densepeds.models.fetch import copy_into, make_dir
 
     dest = Path(dest_dir).expanduser() if dest_dir is not None else cache_dir()
     with tempfile.TemporaryDirectory(prefix="densepeds-export-") as tmp:

@@ -4,7 +4,7 @@ then the user cache (``$XDG_CACHE_HOME/densepeds/models``, by default
 
 Nothing is downloaded at run time: a missing model raises ModelError that says where we looked
 and names the command that puts the file in the cache (``densepeds models fetch`` or
-``densepeds models install``, see :mod:`densepeds.modelfetch`).
+``densepeds models install``, see :mod:`densepeds.models.fetch`).
 
 ``DEFAULT_SET`` is what ``densepeds models fetch`` gets with no names: the paper's detector
 (the ONNX Model Zoo's Mask R-CNN, MIT) and OpenCV Zoo's YoutuReID (Apache-2.0), the only

@@ -23,8 +23,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from densepeds.batch_plan import Job, JobRecord, Settings, new_record, write_record
-from densepeds.batch_plan import remove_partial_outputs as _remove_partial_outputs
+from densepeds.batch.plan import Job, JobRecord, Settings, new_record, write_record
+from densepeds.batch.plan import remove_partial_outputs as _remove_partial_outputs
 from densepeds.errors import DensePedsError, ModelError
 from densepeds.runner import RunSpec, one_line, open_run, track_source
 
