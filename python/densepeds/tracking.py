@@ -429,8 +429,8 @@ class Tracker:
         return Tracks(ids, out_boxes, out_scores, det_index)
 
     def set_image_size(self, width: float, height: float) -> None:
-        """The image size in pixels: an unmatched track with less than ``left_image_inside`` of
-        its predicted box inside it has left and is deleted. Without it no track is judged to
+        """The image size in pixels: an unmatched track with less than 90% of its predicted box
+        inside it has left and is deleted. Without it no track is judged to
         have left (they live ``max_age`` frames). Kept across ``reset``."""
         try:
             self._core.set_image_size(float(width), float(height))
