@@ -216,7 +216,7 @@ def test_default_workers_and_threads_fill_the_cpus(
 def test_a_worker_sizes_its_sessions_for_its_cpus(
     monkeypatch: pytest.MonkeyPatch, models: tuple[Path, Path]
 ) -> None:
-    from densepeds import batch_worker
+    from densepeds.batch import worker as batch_worker
     from densepeds.detect import split_batch
 
     monkeypatch.setattr(onnxutil, "_cpu_limit", None)
@@ -258,8 +258,8 @@ def test_batch_workers_ask_ray_for_a_share_of_the_gpus() -> None:
 def test_batch_device_reaches_the_workers_models(
     monkeypatch: pytest.MonkeyPatch, models: tuple[Path, Path]
 ) -> None:
-    from densepeds import batch_worker
     from densepeds.batch import run
+    from densepeds.batch import worker as batch_worker
 
     monkeypatch.setattr(batch_worker, "_LOADED", {})
     fake_available(monkeypatch, [CUDA, CPU])

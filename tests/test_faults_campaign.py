@@ -284,7 +284,7 @@ def _shipped(path: Path) -> object:
 def test_model_cache_is_private_and_checked(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from densepeds import batch_worker
+    from densepeds.batch import worker as batch_worker
 
     monkeypatch.setattr(batch_worker.tempfile, "gettempdir", lambda: str(tmp_path))
     folder = batch_worker.node_cache_dir()
@@ -310,7 +310,7 @@ def test_model_cache_is_private_and_checked(
 def test_model_cache_of_another_owner_or_a_link_is_refused(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from densepeds import batch_worker
+    from densepeds.batch import worker as batch_worker
 
     monkeypatch.setattr(batch_worker.tempfile, "gettempdir", lambda: str(tmp_path))
     top = tmp_path / f"densepeds-batch-models-{os.getuid()}"

@@ -1,7 +1,8 @@
 //! Measures where threads start to pay: one thread against every core (forced parallel at any
 //! size) on the benchmark's crowd, interleaved in one process so that both see the same
 //! machine load. `cargo run -p frvo --release --example thread_cost -- [neighbours] [rounds]`
-//! prints, per crowd size, the median time per step of each and their ratio.
+//! prints, per crowd size, the median time per step of each and their ratio, as the Markdown of
+//! `benchmarks/results/frvo-threads.md` (its head names the command, the cores and the load).
 
 use frvo::{Footprint, MotionModel, MotionParams, Orca};
 use std::time::Instant;
@@ -15,6 +16,21 @@ fn main() {
     let arg =
         |i: usize, default: usize| args.get(i).and_then(|s| s.parse().ok()).unwrap_or(default);
     let (k, rounds) = (arg(1, 10), arg(2, 30).max(1));
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let load = |when: &str| {
+        let text = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
+        let first = text.split_whitespace().next().unwrap_or("?").to_string();
+        format!("{when} {first}")
+    };
+    println!("# FRVO step time: one thread against every core\n");
+    println!(
+        "Written by `cargo run -p frvo --release --example thread_cost -- {k} {rounds} > \
+         benchmarks/results/frvo-threads.md`: the benchmark's dense crowd (agents 25 px apart, \
+         20 x 40 px ellipses, 8-sided polygons, {k} neighbours), one thread and every core \
+         ({cores} here, forced parallel at every size) taking turns in one process; median of \
+         {rounds} rounds. Load average (1 min): {}.\n",
+        load("at the start")
+    );
     println!("| agents | pairs | one thread us/step | every core us/step | every core / one |");
     println!("|---:|---:|---:|---:|---:|");
     for n in [20, 40, 80, 160, 300, 500, 1000, 2000, 4000] {
@@ -46,4 +62,5 @@ fn main() {
         let pairs = n * k.min(n - 1);
         println!("| {n} | {pairs} | {one:.1} | {all:.1} | {:.2} |", all / one);
     }
+    println!("\nLoad average (1 min): {}.", load("at the end"));
 }

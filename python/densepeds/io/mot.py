@@ -253,15 +253,19 @@ def read_mot_rows(
     return data, nos
 
 
+MIN_BOX_SIZE = 1e-3  # px: the smallest box side a MOTChallenge file of ours can hold
+
+
 def _check_sizes(
     path: str | os.PathLike[str], data: FloatArray, nos: npt.NDArray[np.int64]
 ) -> None:
-    bad = (data[:, 4] <= 0) | (data[:, 5] <= 0)
+    # At least the written precision (write_tracks: 3 decimals), so what is read writes back.
+    bad = (data[:, 4] < MIN_BOX_SIZE) | (data[:, 5] < MIN_BOX_SIZE)
     if bad.any():
         i = int(np.argmax(bad))
         raise DetFileError(
-            f"{path}:{nos[i]}: box width and height must be positive, got "
-            f"{data[i, 4]:g} x {data[i, 5]:g}"
+            f"{path}:{nos[i]}: box width and height must be positive (at least "
+            f"{MIN_BOX_SIZE:g} px), got {data[i, 4]:g} x {data[i, 5]:g}"
         )
 
 
