@@ -183,6 +183,7 @@ BLOCKS: dict[str, Callable[[], list[str]]] = {
     "memory": lambda: [line_starting("memory.md", "Peak RSS after")],
     "batch": lambda: [line_starting("batch.md", "Goals")],
     "fuzz": lambda: table_after("fuzz.md", ""),
+    "frvo-threads": lambda: table_after("frvo-threads.md", "| agents"),
 }
 # The command that wrote each results file: block ``command-NAME`` for ``NAME.md``.
 BLOCKS.update(
