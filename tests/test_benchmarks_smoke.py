@@ -193,3 +193,40 @@ def test_batch_speed_with_ray(tmp_path: Path) -> None:
     out = tmp_path / "batch.md"
     _script("batch_speed", "--frames", "1", "--no-cluster", "--out", str(out), timeout=300)
     assert "x sequential" in out.read_text()
+
+
+def test_blocks(tmp_path: Path) -> None:
+    """The block table on two motion-only cells and one block (seconds)."""
+    shared_path("data", "TUD-Stadtmitte")
+    shared_path("data", "KITTI-17")
+    out_md = tmp_path / "blocks.md"
+    _script(
+        "blocks",
+        "--cells", "TUD-Stadtmitte/det", "KITTI-17/det",
+        "--blocks", "recovery",
+        "--out", str(out_md),
+        "--store", str(tmp_path / "store"),
+        "--cache", str(tmp_path / "cache"),
+    )  # fmt: skip
+    text = out_md.read_text(encoding="utf-8")
+    assert re.search(r"^\| recovery \| `recovery=False` \| [\d.]+ \| [\d.]+ \|", text, re.M), text
+    assert "| KITTI-17 | 10 |" in text
+
+
+def test_gpu_speed_runs_on_the_cpu(tmp_path: Path) -> None:
+    """The prepared GPU measurement, on the CPU and two frames (the script a GPU machine runs)."""
+    shared_path("data", "MOT20-01-dev")
+    shared_path("data", "PETS09-S2L1-dev")
+    shared_path("models")
+    out = _script(
+        "gpu_speed", "--device", "cpu", "--frames", "1:2", "--repeats", "1", "--warm", "1:1"
+    )
+    assert re.search(r"^\| PETS09-S2L1-dev \| 1:2 \| defaults \| [\d.]+ \|", out, re.M), out
+
+
+def test_runtime_speed() -> None:
+    """onnxruntime against OpenVINO, one round (needs the openvino extra)."""
+    pytest.importorskip("openvino", reason="the openvino extra: pip install 'densepeds[openvino]'")
+    shared_path("models")
+    out = _script("runtime_speed", "--rounds", "1", "--repeats", "1")
+    assert re.search(r"^\| OSNet x0.25, 16 crops \| OpenVINO \| [\d.]+ \|", out, re.M), out
